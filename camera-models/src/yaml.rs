@@ -1,0 +1,205 @@
+//! YAML reading helpers (on yaml-rust2's DOM) that name the key at fault, number formatting
+//! for writers, and atomic file writes.
+
+use std::io::Write;
+use std::path::Path;
+
+use yaml_rust2::{Yaml, YamlLoader};
+
+use crate::error::FileError;
+
+/// Parse the first YAML document of `text`. Leading `%` directive lines are dropped first:
+/// OpenCV (and so CamOdoCal) writes `%YAML:1.0`, which is not a valid YAML 1.2 directive.
+pub fn parse(text: &str) -> Result<Yaml, FileError> {
+    let mut body = text.trim_start_matches('\u{feff}');
+    loop {
+        let trimmed = body.trim_start_matches([' ', '\t', '\r', '\n']);
+        if trimmed.starts_with('%') {
+            body = trimmed.split_once('\n').map_or("", |(_, rest)| rest);
+        } else {
+            body = trimmed;
+            break;
+        }
+    }
+    let docs = YamlLoader::load_from_str(body).map_err(|e| FileError::Yaml {
+        message: e.to_string(),
+    })?;
+    match docs.into_iter().next() {
+        None | Some(Yaml::Null) => Err(FileError::Empty),
+        Some(doc) => Ok(doc),
+    }
+}
+
+/// Join a parent path and a key for messages (`projection_parameters.mu`).
+pub fn join(parent: &str, key: &str) -> String {
+    if parent.is_empty() {
+        key.to_owned()
+    } else {
+        format!("{parent}.{key}")
+    }
+}
+
+/// The value of `key` in the mapping `node` (whose path is `path`).
+pub fn get<'a>(node: &'a Yaml, path: &str, key: &str) -> Result<&'a Yaml, FileError> {
+    let Yaml::Hash(h) = node else {
+        return Err(FileError::WrongType {
+            key: if path.is_empty() {
+                "(document)".to_owned()
+            } else {
+                path.to_owned()
+            },
+            expected: "a mapping",
+        });
+    };
+    h.get(&Yaml::String(key.to_owned()))
+        .ok_or_else(|| FileError::MissingKey {
+            key: join(path, key),
+        })
+}
+
+/// The value of `key` if present.
+pub fn get_opt<'a>(node: &'a Yaml, key: &str) -> Option<&'a Yaml> {
+    match node {
+        Yaml::Hash(h) => h.get(&Yaml::String(key.to_owned())),
+        _ => None,
+    }
+}
+
+/// A number (YAML real or integer).
+pub fn number(node: &Yaml, key: &str) -> Result<f64, FileError> {
+    match node {
+        Yaml::Real(_) => node.as_f64(),
+        #[allow(clippy::cast_precision_loss)] // file integers are small sizes and coefficients
+        Yaml::Integer(i) => Some(*i as f64),
+        _ => None,
+    }
+    .ok_or_else(|| FileError::WrongType {
+        key: key.to_owned(),
+        expected: "a number",
+    })
+}
+
+/// `node[key]` as a number.
+pub fn number_at(node: &Yaml, path: &str, key: &str) -> Result<f64, FileError> {
+    number(get(node, path, key)?, &join(path, key))
+}
+
+/// A non-negative integer that fits in u32.
+pub fn unsigned(node: &Yaml, key: &str) -> Result<u32, FileError> {
+    node.as_i64()
+        .and_then(|i| u32::try_from(i).ok())
+        .ok_or_else(|| FileError::WrongType {
+            key: key.to_owned(),
+            expected: "a non-negative integer",
+        })
+}
+
+/// A string (a YAML scalar that is a string; numbers are accepted and printed back).
+pub fn string(node: &Yaml, key: &str) -> Result<String, FileError> {
+    match node {
+        Yaml::String(s) | Yaml::Real(s) => Ok(s.clone()),
+        Yaml::Integer(i) => Ok(i.to_string()),
+        Yaml::Null => Ok(String::new()),
+        _ => Err(FileError::WrongType {
+            key: key.to_owned(),
+            expected: "a string",
+        }),
+    }
+}
+
+/// A list of exactly `N` numbers.
+pub fn numbers<const N: usize>(
+    node: &Yaml,
+    key: &str,
+    expected: &'static str,
+) -> Result<[f64; N], FileError> {
+    let wrong = || FileError::WrongType {
+        key: key.to_owned(),
+        expected,
+    };
+    let Yaml::Array(items) = node else {
+        return Err(wrong());
+    };
+    if items.len() != N {
+        return Err(wrong());
+    }
+    let mut out = [0.0; N];
+    for (o, item) in out.iter_mut().zip(items) {
+        *o = number(item, key).map_err(|_| wrong())?;
+    }
+    Ok(out)
+}
+
+/// A number with 17 significant digits (enough to round-trip any f64), in C's `%.16e` form
+/// (`-1.6480000000000000e-02`): a signed, two-digit exponent, which YAML 1.1 readers such as
+/// PyYAML (Kalibr) need to see a float, and which OpenCV writes too.
+pub fn fmt_f64(x: f64) -> String {
+    let s = format!("{x:.16e}");
+    match s.split_once('e') {
+        Some((mantissa, exp)) => {
+            let (sign, digits) = match exp.strip_prefix('-') {
+                Some(d) => ('-', d),
+                None => ('+', exp),
+            };
+            format!("{mantissa}e{sign}{digits:0>2}")
+        }
+        // NaN and infinities never reach the writers (parameters are validated finite).
+        None => s,
+    }
+}
+
+/// A string as a YAML scalar: plain when it is safe, double-quoted with escapes otherwise.
+pub fn fmt_str(s: &str) -> String {
+    let plain = !s.is_empty()
+        && s.chars()
+            .all(|c| c.is_ascii_alphanumeric() || matches!(c, '/' | '_' | '-' | '.'))
+        && !s.starts_with(['-', '.'])
+        && s.parse::<f64>().is_err()
+        && !matches!(
+            s.to_ascii_lowercase().as_str(),
+            "true" | "false" | "null" | "yes" | "no" | "on" | "off"
+        );
+    if plain {
+        return s.to_owned();
+    }
+    let mut out = String::with_capacity(s.len() + 2);
+    out.push('"');
+    for c in s.chars() {
+        match c {
+            '"' => out.push_str("\\\""),
+            '\\' => out.push_str("\\\\"),
+            '\n' => out.push_str("\\n"),
+            '\t' => out.push_str("\\t"),
+            c if c.is_control() => out.push_str(&format!("\\u{:04x}", u32::from(c))),
+            c => out.push(c),
+        }
+    }
+    out.push('"');
+    out
+}
+
+/// Write `contents` to `path` atomically: a temporary file in the same folder, flushed and
+/// synced, then renamed over the target.
+pub fn write_atomic(path: &Path, contents: &str) -> Result<(), FileError> {
+    let io = |source| FileError::Io {
+        path: path.to_owned(),
+        source,
+    };
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    let mut tmp = tempfile::NamedTempFile::new_in(dir).map_err(io)?;
+    tmp.write_all(contents.as_bytes()).map_err(io)?;
+    tmp.as_file().sync_all().map_err(io)?;
+    tmp.persist(path).map_err(|e| io(e.error))?;
+    Ok(())
+}
+
+/// Read a whole text file.
+pub fn read_text(path: &Path) -> Result<String, FileError> {
+    std::fs::read_to_string(path).map_err(|source| FileError::Io {
+        path: path.to_owned(),
+        source,
+    })
+}
