@@ -1,0 +1,459 @@
+//! Pose refinement: Levenberg-Marquardt on the bearing error, optionally robust.
+//!
+//! K. Levenberg, "A method for the solution of certain non-linear problems in least squares",
+//! Quarterly of Applied Mathematics 2, 1944; D. Marquardt, "An algorithm for least-squares
+//! estimation of nonlinear parameters", SIAM J. Applied Mathematics 11(2), 1963; damping
+//! update of H. B. Nielsen, "Damping parameter in Marquardt's method", IMM-REP-1999-05, DTU.
+//!
+//! The residual of correspondence `i` is the chord `r_i = p_i / |p_i| - f_i` between the
+//! observed unit bearing `f_i` and the direction of the camera-frame point
+//! `p_i = R X_i + t`. Its length is `2 sin(angle / 2)`: to first order the angle itself, the
+//! tangent-plane error of the bearing, and it is well defined and monotonic for every angle up
+//! to 180 degrees, so rays beyond 90 degrees of incidence are refined like any other. Its
+//! Jacobian is `(I - p^ p^^T) / |p| [-[p]x, I]` for the update `R <- exp(w) R`,
+//! `t <- exp(w) t + v`. Robust losses are applied by iteratively reweighted least squares.
+
+use nalgebra::{
+    Isometry3, Matrix3, Matrix6, Point3, Translation3, UnitQuaternion, Vector3, Vector6,
+};
+
+use crate::error::PnpError;
+use crate::validate::check_correspondences;
+
+/// A robust loss `rho(s)` of the squared residual `s = |r|^2` (radians squared, to first
+/// order). Scales are in radians; turn pixels into an angle with
+/// [`crate::angle_from_pixels`].
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[non_exhaustive]
+pub enum RobustLoss {
+    /// Plain least squares, `rho(s) = s`: the maximum-likelihood estimate under Gaussian
+    /// angular noise.
+    #[default]
+    Squared,
+    /// Huber: `rho(s) = s` for `s <= k^2`, `2 k sqrt(s) - k^2` beyond.
+    Huber {
+        /// The scale `k`, in radians.
+        scale: f64,
+    },
+    /// Cauchy: `rho(s) = k^2 ln(1 + s / k^2)`.
+    Cauchy {
+        /// The scale `k`, in radians.
+        scale: f64,
+    },
+}
+
+impl RobustLoss {
+    /// `rho(s)`.
+    pub fn rho(&self, s: f64) -> f64 {
+        match *self {
+            Self::Squared => s,
+            Self::Huber { scale } => {
+                if s <= scale * scale {
+                    s
+                } else {
+                    2.0 * scale * s.sqrt() - scale * scale
+                }
+            }
+            Self::Cauchy { scale } => {
+                let k2 = scale * scale;
+                k2 * (s / k2).ln_1p()
+            }
+        }
+    }
+
+    /// `rho'(s)`, the weight of a residual in iteratively reweighted least squares.
+    pub fn weight(&self, s: f64) -> f64 {
+        match *self {
+            Self::Squared => 1.0,
+            Self::Huber { scale } => {
+                if s <= scale * scale {
+                    1.0
+                } else {
+                    scale / s.sqrt()
+                }
+            }
+            Self::Cauchy { scale } => 1.0 / (1.0 + s / (scale * scale)),
+        }
+    }
+
+    fn validate(&self) -> Result<(), PnpError> {
+        match *self {
+            Self::Squared => Ok(()),
+            Self::Huber { scale } | Self::Cauchy { scale } => {
+                if scale.is_finite() && scale > 0.0 {
+                    Ok(())
+                } else {
+                    Err(PnpError::InvalidOption {
+                        name: "loss",
+                        reason: format!("the loss scale must be finite and positive, got {scale}"),
+                    })
+                }
+            }
+        }
+    }
+}
+
+/// Options of [`refine_pose`].
+#[derive(Debug, Clone, PartialEq)]
+#[non_exhaustive]
+pub struct RefineOptions {
+    /// Most Levenberg-Marquardt iterations. Default 50.
+    pub max_iterations: usize,
+    /// The loss. Default [`RobustLoss::Squared`].
+    pub loss: RobustLoss,
+    /// Stop when the update is smaller than this (radians for the rotation, and relative to
+    /// the translation's norm plus the scene's spread for the translation). Default `1e-12`.
+    pub step_tolerance: f64,
+    /// Stop when an accepted step lowers the cost by less than this fraction. Default `1e-14`.
+    pub cost_tolerance: f64,
+}
+
+impl Default for RefineOptions {
+    fn default() -> Self {
+        Self {
+            max_iterations: 50,
+            loss: RobustLoss::Squared,
+            step_tolerance: 1e-12,
+            cost_tolerance: 1e-14,
+        }
+    }
+}
+
+impl RefineOptions {
+    pub(crate) fn validate(&self) -> Result<(), PnpError> {
+        self.loss.validate()?;
+        for (name, value) in [
+            ("step_tolerance", self.step_tolerance),
+            ("cost_tolerance", self.cost_tolerance),
+        ] {
+            if !(value.is_finite() && value >= 0.0) {
+                return Err(PnpError::InvalidOption {
+                    name,
+                    reason: format!("must be finite and non-negative, got {value}"),
+                });
+            }
+        }
+        Ok(())
+    }
+}
+
+/// The outcome of [`refine_pose`].
+#[derive(Debug, Clone, PartialEq)]
+#[non_exhaustive]
+pub struct RefinedPose {
+    /// The refined `camera_from_world`.
+    pub camera_from_world: Isometry3<f64>,
+    /// Iterations run.
+    pub iterations: usize,
+    /// Cost `sum rho(|r_i|^2)` at the initial pose.
+    pub initial_cost: f64,
+    /// Cost at the refined pose (never above `initial_cost`).
+    pub final_cost: f64,
+}
+
+/// Initial Levenberg-Marquardt damping, relative to the diagonal of `J^T J`: small, as the
+/// starting pose of a refinement is usually close.
+const INITIAL_DAMPING: f64 = 1e-4;
+
+/// The least number of correspondences for refinement: three bearings fix the six degrees of
+/// freedom (up to the P3P ambiguity the initial pose resolves).
+pub const REFINE_MIN_POINTS: usize = 3;
+
+/// Refines `camera_from_world` by Levenberg-Marquardt on the chord bearing error (see the
+/// module docs), starting from `initial`.
+///
+/// # Errors
+/// The input errors of [`crate::epnp`] (with at least [`REFINE_MIN_POINTS`]),
+/// [`PnpError::InvalidOption`] for a non-positive loss scale, a negative tolerance or a
+/// non-finite `initial` pose, and [`PnpError::Numerical`] if the cost at `initial` is not
+/// finite.
+pub fn refine_pose(
+    bearings: &[Vector3<f64>],
+    points: &[Point3<f64>],
+    initial: &Isometry3<f64>,
+    options: &RefineOptions,
+) -> Result<RefinedPose, PnpError> {
+    refine_checked(bearings, points, None, initial, options)
+}
+
+/// Like [`refine_pose`], with a per-correspondence information matrix `information[i]`
+/// (symmetric positive semi-definite, in bearing space): the cost is
+/// `sum rho(r_i^T information[i] r_i)`. With the information of the camera's pixel noise,
+/// `J_i^T J_i / sigma^2` for the projection Jacobian `J_i` (2 x 3) at the bearing, this is the
+/// maximum-likelihood pose under Gaussian pixel noise; [`pinhole_information`] gives it for a
+/// pinhole camera.
+///
+/// # Errors
+/// Those of [`refine_pose`], and [`PnpError::InvalidOption`] (`information`) if there is not
+/// one finite matrix per correspondence.
+pub fn refine_pose_weighted(
+    bearings: &[Vector3<f64>],
+    points: &[Point3<f64>],
+    information: &[Matrix3<f64>],
+    initial: &Isometry3<f64>,
+    options: &RefineOptions,
+) -> Result<RefinedPose, PnpError> {
+    refine_checked(bearings, points, Some(information), initial, options)
+}
+
+/// Input and option checks shared by the public refinements, then the refinement.
+fn refine_checked(
+    bearings: &[Vector3<f64>],
+    points: &[Point3<f64>],
+    information: Option<&[Matrix3<f64>]>,
+    initial: &Isometry3<f64>,
+    options: &RefineOptions,
+) -> Result<RefinedPose, PnpError> {
+    check_correspondences("pose refinement", REFINE_MIN_POINTS, bearings, points)?;
+    if let Some(information) = information {
+        let invalid = |reason: String| PnpError::InvalidOption {
+            name: "information",
+            reason,
+        };
+        if information.len() != bearings.len() {
+            return Err(invalid(format!(
+                "{} matrices for {} correspondences",
+                information.len(),
+                bearings.len()
+            )));
+        }
+        if let Some(index) = information
+            .iter()
+            .position(|m| !m.iter().all(|v| v.is_finite()))
+        {
+            return Err(invalid(format!("matrix {index} has a non-finite entry")));
+        }
+    }
+    options.validate()?;
+    check_initial(initial)?;
+    let all: Vec<usize> = (0..bearings.len()).collect();
+    refine_subset(bearings, points, &all, information, initial, options)
+}
+
+/// The information matrix of a bearing of a pinhole camera (focal length `focal_px` pixels
+/// in both axes) under isotropic pixel noise of one pixel: `J^T J` with `J` the Jacobian of
+/// `focal_px * (x / z, y / z)` at the bearing. Zero for a bearing with `z <= 0`, which a
+/// pinhole cannot see.
+pub fn pinhole_information(bearing: &Vector3<f64>, focal_px: f64) -> Matrix3<f64> {
+    let z = bearing.z;
+    if z.is_nan() || z <= 0.0 {
+        return Matrix3::zeros();
+    }
+    let jacobian = nalgebra::Matrix2x3::new(
+        1.0 / z,
+        0.0,
+        -bearing.x / (z * z),
+        0.0,
+        1.0 / z,
+        -bearing.y / (z * z),
+    ) * focal_px;
+    jacobian.transpose() * jacobian
+}
+
+fn check_initial(initial: &Isometry3<f64>) -> Result<(), PnpError> {
+    let finite = initial.translation.vector.iter().all(|v| v.is_finite())
+        && initial.rotation.coords.iter().all(|v| v.is_finite());
+    if finite {
+        Ok(())
+    } else {
+        Err(PnpError::InvalidOption {
+            name: "initial",
+            reason: "the initial pose has a non-finite entry".into(),
+        })
+    }
+}
+
+/// Refinement over the correspondences listed in `subset`, on validated input.
+pub(crate) fn refine_subset(
+    bearings: &[Vector3<f64>],
+    points: &[Point3<f64>],
+    subset: &[usize],
+    information: Option<&[Matrix3<f64>]>,
+    initial: &Isometry3<f64>,
+    options: &RefineOptions,
+) -> Result<RefinedPose, PnpError> {
+    let problem = Problem {
+        bearings,
+        points,
+        subset,
+        information,
+        loss: options.loss,
+    };
+    let mut rotation = initial.rotation;
+    let mut translation = initial.translation.vector;
+    let initial_cost = problem.cost(&rotation, &translation);
+    if !initial_cost.is_finite() {
+        return Err(PnpError::Numerical(
+            "pose refinement: the cost at the initial pose is not finite",
+        ));
+    }
+    let mut cost = initial_cost;
+    // Marquardt's damping, relative to the diagonal of J^T J.
+    let mut damping = INITIAL_DAMPING;
+    let mut nu = 2.0;
+    let mut iterations = 0;
+    'iterations: while iterations < options.max_iterations && cost > 0.0 {
+        iterations += 1;
+        let (hessian, gradient) = problem.normal_equations(&rotation, &translation);
+        loop {
+            let mut damped = hessian;
+            for i in 0..6 {
+                damped[(i, i)] += damping * hessian[(i, i)].max(f64::MIN_POSITIVE);
+            }
+            let Some(step) = damped.cholesky().map(|c| c.solve(&(-gradient))) else {
+                damping = damping * nu + f64::MIN_POSITIVE;
+                nu *= 2.0;
+                if !damping.is_finite() {
+                    break 'iterations;
+                }
+                continue;
+            };
+            let (new_rotation, new_translation) = apply(&rotation, &translation, &step);
+            let new_cost = problem.cost(&new_rotation, &new_translation);
+            // Gain ratio: actual over predicted decrease (the model is of cost / 2).
+            let mut scaled = step;
+            for i in 0..6 {
+                scaled[i] *= damping * hessian[(i, i)].max(f64::MIN_POSITIVE);
+            }
+            let predicted = step.dot(&(scaled - gradient));
+            let gain = (cost - new_cost) / predicted;
+            let small_step = step.fixed_rows::<3>(0).norm() <= options.step_tolerance
+                && step.fixed_rows::<3>(3).norm()
+                    <= options.step_tolerance * (1.0 + translation.norm());
+            if new_cost.is_finite() && new_cost <= cost && gain > 0.0 {
+                let decrease = cost - new_cost;
+                rotation = new_rotation;
+                translation = new_translation;
+                cost = new_cost;
+                damping *= (1.0 - (2.0 * gain - 1.0).powi(3)).max(1.0 / 3.0);
+                nu = 2.0;
+                if decrease <= options.cost_tolerance * cost || small_step {
+                    break 'iterations;
+                }
+                break;
+            }
+            damping *= nu;
+            nu *= 2.0;
+            if small_step || !damping.is_finite() {
+                break 'iterations;
+            }
+        }
+    }
+    Ok(finish(
+        rotation,
+        translation,
+        iterations,
+        initial_cost,
+        cost,
+    ))
+}
+
+fn finish(
+    rotation: UnitQuaternion<f64>,
+    translation: Vector3<f64>,
+    iterations: usize,
+    initial_cost: f64,
+    final_cost: f64,
+) -> RefinedPose {
+    RefinedPose {
+        camera_from_world: Isometry3::from_parts(Translation3::from(translation), rotation),
+        iterations,
+        initial_cost,
+        final_cost,
+    }
+}
+
+/// `R <- exp(w) R`, `t <- exp(w) t + v` for `step = (w, v)`.
+fn apply(
+    rotation: &UnitQuaternion<f64>,
+    translation: &Vector3<f64>,
+    step: &Vector6<f64>,
+) -> (UnitQuaternion<f64>, Vector3<f64>) {
+    let delta = UnitQuaternion::from_scaled_axis(step.fixed_rows::<3>(0).into_owned());
+    (
+        delta * rotation,
+        delta * translation + step.fixed_rows::<3>(3).into_owned(),
+    )
+}
+
+struct Problem<'a> {
+    bearings: &'a [Vector3<f64>],
+    points: &'a [Point3<f64>],
+    subset: &'a [usize],
+    information: Option<&'a [Matrix3<f64>]>,
+    loss: RobustLoss,
+}
+
+impl Problem<'_> {
+    fn cost(&self, rotation: &UnitQuaternion<f64>, translation: &Vector3<f64>) -> f64 {
+        let r = rotation.to_rotation_matrix().into_inner();
+        self.subset
+            .iter()
+            .map(|&i| {
+                let p = r * self.points[i].coords + translation;
+                self.loss.rho(self.squared_error(i, &p))
+            })
+            .sum()
+    }
+
+    /// `r^T Omega r` (or `|r|^2`) for correspondence `i` at camera-frame point `p`.
+    fn squared_error(&self, i: usize, p: &Vector3<f64>) -> f64 {
+        match self.information {
+            None => crate::geometry::chord_squared(&self.bearings[i], p),
+            Some(info) => {
+                let norm = p.norm();
+                if norm.is_nan() || norm <= 0.0 {
+                    return f64::INFINITY;
+                }
+                let r = p / norm - self.bearings[i];
+                r.dot(&(info[i] * r))
+            }
+        }
+    }
+
+    /// `J^T W J` and `J^T W r` (IRLS weights `W = rho'(|r|^2)`).
+    fn normal_equations(
+        &self,
+        rotation: &UnitQuaternion<f64>,
+        translation: &Vector3<f64>,
+    ) -> (Matrix6<f64>, Vector6<f64>) {
+        let r = rotation.to_rotation_matrix().into_inner();
+        let mut hessian = Matrix6::zeros();
+        let mut gradient = Vector6::zeros();
+        for &i in self.subset {
+            let p = r * self.points[i].coords + translation;
+            let norm = p.norm();
+            if norm.is_nan() || norm <= 0.0 {
+                continue;
+            }
+            let unit = p / norm;
+            let residual = unit - self.bearings[i];
+            let info = self.information.map(|info| info[i]);
+            let squared = match &info {
+                Some(o) => residual.dot(&(o * residual)),
+                None => residual.norm_squared(),
+            };
+            let weight = self.loss.weight(squared);
+            // d unit / d p = (I - u u^T) / |p|; d p / d(w, v) = [-[p]x, I].
+            let projector = (Matrix3::identity() - unit * unit.transpose()) / norm;
+            let skew = p.cross_matrix();
+            let mut jacobian = nalgebra::Matrix3x6::zeros();
+            jacobian
+                .fixed_view_mut::<3, 3>(0, 0)
+                .copy_from(&(-(projector * skew)));
+            jacobian.fixed_view_mut::<3, 3>(0, 3).copy_from(&projector);
+            match &info {
+                Some(o) => {
+                    let weighted = (o * jacobian).transpose();
+                    hessian += weighted * jacobian * weight;
+                    gradient += weighted * residual * weight;
+                }
+                None => {
+                    hessian += jacobian.transpose() * jacobian * weight;
+                    gradient += jacobian.transpose() * residual * weight;
+                }
+            }
+        }
+        (hessian, gradient)
+    }
+}
