@@ -1,0 +1,314 @@
+//! Levenberg-Marquardt as a trust-region method, with Ceres Solver 2.1's rules
+//! (`TrustRegionMinimizer` and `LevenbergMarquardtStrategy`; Madsen, Nielsen, Tingleff,
+//! "Methods for Non-Linear Least Squares Problems", 2004, for the radius update).
+//!
+//! Each iteration solves (JᵀJ + D/μ) δ = −Jᵀr on the Jacobi-scaled Jacobian, with
+//! D = diag(JᵀJ) clamped to [`SolverOptions::min_lm_diagonal`, `max_lm_diagonal`] and μ the
+//! trust-region radius. The gain ratio ρ = (cost − cost(x ⊞ δ)) / (model decrease) uses the
+//! true robust cost ½ Σ ρ(|r|²). A step is accepted when ρ exceeds
+//! [`SolverOptions::min_relative_decrease`]; then μ ← μ / max(1/3, 1 − (2ρ − 1)³) and ν = 2,
+//! otherwise μ ← μ / ν, ν ← 2ν, and the Jacobian (and D) are reused. A step the linear
+//! solver cannot compute (a singular system) is treated as a rejected one, so it raises the
+//! damping.
+
+use std::time::Instant;
+
+use crate::block_jacobian::{model_cost_change, scale_columns};
+use crate::error::{BundleAdjustError, Result};
+use crate::evaluator::{Accumulated, EvalError, Evaluator};
+use crate::linear_solver::LinearSolver;
+use crate::options::SolverOptions;
+use crate::parallel::Executor;
+use crate::problem::Problem;
+use crate::program::Program;
+use crate::summary::{IterationSummary, StageTimes, Summary, Termination};
+
+fn initial_error(e: EvalError) -> BundleAdjustError {
+    match e {
+        EvalError::Failed(residual) => BundleAdjustError::InitialEvaluationFailed { residual },
+        EvalError::NonFinite(residual) => BundleAdjustError::NonFiniteResidual { residual },
+        EvalError::Shape(residual, position) => {
+            BundleAdjustError::JacobianShapeMismatch { residual, position }
+        }
+    }
+}
+
+/// Max-norm and Euclidean norm of the unscaled gradient from the scaled one.
+fn gradient_norms(g_scaled: &[f64], scale: &[f64]) -> (f64, f64) {
+    let mut max = 0.0f64;
+    let mut sum = 0.0;
+    for (g, s) in g_scaled.iter().zip(scale) {
+        let v = g / s;
+        max = max.max(v.abs());
+        sum += v * v;
+    }
+    (max, sum.sqrt())
+}
+
+/// |x| over the free blocks.
+fn free_norm(problem: &Problem, program: &Program, x: &[f64]) -> f64 {
+    program
+        .active_blocks
+        .iter()
+        .flat_map(|&b| problem.slice(x, b))
+        .map(|v| v * v)
+        .sum::<f64>()
+        .sqrt()
+}
+
+/// candidate = x ⊞ step on the free blocks.
+fn plus(problem: &Problem, program: &Program, x: &[f64], step: &[f64], candidate: &mut [f64]) {
+    for &b in &program.active_blocks {
+        let block = &problem.blocks[b];
+        let col = program.block_col[b] as usize;
+        let d = &step[col..col + block.tangent];
+        let xs = &x[block.offset..block.offset + block.size];
+        let out = &mut candidate[block.offset..block.offset + block.size];
+        match &block.manifold {
+            Some(m) => m.plus(xs, d, out),
+            None => {
+                for ((o, xv), dv) in out.iter_mut().zip(xs).zip(d) {
+                    *o = xv + dv;
+                }
+            }
+        }
+    }
+}
+
+/// Minimizes the problem's cost; see the module documentation.
+pub(crate) fn solve(problem: &mut Problem, options: &SolverOptions) -> Result<Summary> {
+    let start = Instant::now();
+    options.validate()?;
+    problem.check_values()?;
+    let program = Program::new(problem, options.automatic_elimination)?;
+    let exec = Executor::new(options.num_threads)?;
+    let mut x = problem.values.clone();
+    let problem_ref: &Problem = problem;
+    let mut linear = LinearSolver::new(&program, options, exec.threads())?;
+    let evaluator = Evaluator::new(problem_ref, &program);
+    let mut times = StageTimes {
+        preprocessing: start.elapsed().as_secs_f64(),
+        ..Default::default()
+    };
+
+    let n = program.n_tangent();
+    let mut res = vec![0.0; program.n_res_values];
+    let mut jac = vec![0.0; program.n_jac_values];
+    let mut scale = vec![1.0; n];
+    let fixed_cost = evaluator.fixed_cost(&x).map_err(initial_error)?;
+    let mut g = vec![0.0; n];
+    let mut column_norms = vec![0.0; n];
+    let t = Instant::now();
+    let acc = Accumulated {
+        gradient: &mut g,
+        column_norms: &mut column_norms,
+    };
+    let mut cost = evaluator
+        .jacobian(&x, &mut res, &mut jac, None, acc, &exec)
+        .map_err(initial_error)?;
+    times.jacobian_evaluation += t.elapsed().as_secs_f64();
+    if options.jacobi_scaling {
+        for ((s, c), gi) in scale
+            .iter_mut()
+            .zip(column_norms.iter_mut())
+            .zip(g.iter_mut())
+        {
+            *s = 1.0 / (1.0 + c.sqrt());
+            *c *= *s * *s;
+            *gi *= *s;
+        }
+        scale_columns(&program, &mut jac, &scale);
+    }
+    let (mut gmax, _) = gradient_norms(&g, &scale);
+
+    let mut radius = options.initial_trust_region_radius;
+    // A log line with no step yet: the current cost, gradient and radius.
+    let fresh = |iteration: usize, cost: f64, gmax: f64, radius: f64| IterationSummary {
+        iteration,
+        cost: cost + fixed_cost,
+        cost_change: 0.0,
+        gradient_max_norm: gmax,
+        step_norm: 0.0,
+        relative_decrease: 0.0,
+        trust_region_radius: radius,
+        linear_solver_iterations: 0,
+        step_is_successful: iteration == 0,
+        iteration_time: 0.0,
+        cumulative_time: 0.0,
+    };
+    let mut log = vec![fresh(0, cost, gmax, radius)];
+    log[0].iteration_time = start.elapsed().as_secs_f64();
+    log[0].cumulative_time = log[0].iteration_time;
+    if options.log_to_stderr {
+        eprintln!("{}", IterationSummary::log_header());
+        eprintln!("{}", log[0].log_line());
+    }
+    let initial_cost = cost + fixed_cost;
+    let mut accepted = 0usize;
+    let mut linear_solves = 0usize;
+
+    let termination = if n == 0 {
+        Termination::NoFreeParameters
+    } else if options.max_iterations == 0 {
+        Termination::MaxIterations
+    } else if gmax <= options.gradient_tolerance {
+        Termination::GradientTolerance
+    } else {
+        let mut candidate = x.clone();
+        let mut diag_base = vec![0.0; n];
+        let mut diag = vec![0.0; n];
+        let mut step = vec![0.0; n];
+        let mut unscaled = vec![0.0; n];
+        let mut x_norm = free_norm(problem_ref, &program, &x);
+        let mut decrease_factor = 2.0;
+        let mut reuse_diagonal = false;
+        let mut invalid_steps = 0usize;
+        let mut iteration = 0usize;
+        loop {
+            let iteration_start = Instant::now();
+            let other_start = Instant::now();
+            iteration += 1;
+            if !reuse_diagonal {
+                for (d, c) in diag_base.iter_mut().zip(&column_norms) {
+                    *d = c.clamp(options.min_lm_diagonal, options.max_lm_diagonal);
+                }
+            }
+            for (d, b) in diag.iter_mut().zip(&diag_base) {
+                *d = b / radius;
+            }
+            let mut other = other_start.elapsed().as_secs_f64();
+            linear_solves += 1;
+            let solved = linear.solve(&program, &jac, &g, &diag, &mut step, &exec, &mut times);
+            let other_start = Instant::now();
+            let model_change = solved
+                .map(|_| model_cost_change(&program, &jac, &res, &step))
+                .unwrap_or(0.0);
+            let ls_iterations = solved.unwrap_or(0);
+            let mut entry = fresh(iteration, cost, gmax, radius);
+            entry.linear_solver_iterations = ls_iterations;
+            if solved.is_none() || model_change.is_nan() || model_change <= 0.0 {
+                // An invalid step: no progress, shrink the trust region.
+                invalid_steps += 1;
+                if invalid_steps >= options.max_consecutive_invalid_steps {
+                    break Termination::TooManyInvalidSteps;
+                }
+                radius /= decrease_factor;
+                decrease_factor *= 2.0;
+                reuse_diagonal = true;
+            } else {
+                invalid_steps = 0;
+                for ((u, s), sc) in unscaled.iter_mut().zip(&step).zip(&scale) {
+                    *u = s * sc;
+                }
+                plus(problem_ref, &program, &x, &unscaled, &mut candidate);
+                other += other_start.elapsed().as_secs_f64();
+                let t = Instant::now();
+                let candidate_cost = evaluator.cost(&candidate, &exec).unwrap_or(f64::INFINITY);
+                times.residual_evaluation += t.elapsed().as_secs_f64();
+                let other_start = Instant::now();
+                let step_norm = program
+                    .active_blocks
+                    .iter()
+                    .flat_map(|&b| {
+                        problem_ref
+                            .slice(&x, b)
+                            .iter()
+                            .zip(problem_ref.slice(&candidate, b))
+                    })
+                    .map(|(a, b)| (a - b) * (a - b))
+                    .sum::<f64>()
+                    .sqrt();
+                entry.step_norm = step_norm;
+                if step_norm <= options.parameter_tolerance * (x_norm + options.parameter_tolerance)
+                {
+                    break Termination::ParameterTolerance;
+                }
+                let cost_change = cost - candidate_cost;
+                entry.cost_change = cost_change;
+                if cost_change.abs() <= options.function_tolerance * cost {
+                    break Termination::FunctionTolerance;
+                }
+                let relative_decrease = if candidate_cost.is_finite() {
+                    cost_change / model_change
+                } else {
+                    f64::MIN
+                };
+                entry.relative_decrease = relative_decrease;
+                if relative_decrease > options.min_relative_decrease {
+                    core::mem::swap(&mut x, &mut candidate);
+                    other += other_start.elapsed().as_secs_f64();
+                    let t = Instant::now();
+                    let acc = Accumulated {
+                        gradient: &mut g,
+                        column_norms: &mut column_norms,
+                    };
+                    let evaluated =
+                        evaluator.jacobian(&x, &mut res, &mut jac, Some(&scale), acc, &exec);
+                    times.jacobian_evaluation += t.elapsed().as_secs_f64();
+                    let other_start = Instant::now();
+                    match evaluated {
+                        Ok(c) => cost = c,
+                        Err(_) => {
+                            core::mem::swap(&mut x, &mut candidate);
+                            break Termination::EvaluationFailed;
+                        }
+                    }
+                    x_norm = free_norm(problem_ref, &program, &x);
+                    gmax = gradient_norms(&g, &scale).0;
+                    let factor = 1.0 - (2.0 * relative_decrease - 1.0).powi(3);
+                    radius = (radius / factor.max(1.0 / 3.0)).min(options.max_trust_region_radius);
+                    decrease_factor = 2.0;
+                    reuse_diagonal = false;
+                    accepted += 1;
+                    entry.cost = cost + fixed_cost;
+                    entry.gradient_max_norm = gmax;
+                    entry.step_is_successful = true;
+                    other += other_start.elapsed().as_secs_f64();
+                } else {
+                    radius /= decrease_factor;
+                    decrease_factor *= 2.0;
+                    reuse_diagonal = true;
+                    entry.cost = candidate_cost + fixed_cost;
+                    other += other_start.elapsed().as_secs_f64();
+                }
+            }
+            times.other += other;
+            entry.trust_region_radius = radius;
+            entry.iteration_time = iteration_start.elapsed().as_secs_f64();
+            entry.cumulative_time = start.elapsed().as_secs_f64();
+            if options.log_to_stderr {
+                eprintln!("{}", entry.log_line());
+            }
+            let successful = entry.step_is_successful;
+            log.push(entry);
+            if iteration >= options.max_iterations {
+                break Termination::MaxIterations;
+            }
+            if successful && gmax <= options.gradient_tolerance {
+                break Termination::GradientTolerance;
+            }
+            if radius < options.min_trust_region_radius {
+                break Termination::TrustRegionTooSmall;
+            }
+        }
+    };
+    drop(evaluator);
+    let kind = linear.kind();
+    problem.values = x;
+    times.total = start.elapsed().as_secs_f64();
+    Ok(Summary {
+        initial_cost,
+        final_cost: cost + fixed_cost,
+        iterations: log.last().map_or(0, |l| l.iteration),
+        linear_solves,
+        accepted_iterations: accepted,
+        termination,
+        linear_solver: kind,
+        num_threads: exec.threads(),
+        num_eliminated: program.n_e,
+        num_reduced: program.n_f,
+        num_residual_blocks: problem.residuals.len(),
+        times,
+        log,
+    })
+}

@@ -1,0 +1,527 @@
+//! Block-by-block Schur complement of the eliminated group (Triggs et al., "Bundle
+//! Adjustment — A Modern Synthesis", 2000, section 6.1; the chunked elimination of Ceres's
+//! `SchurEliminator`).
+//!
+//! Ordering the unknowns as [eliminated e; reduced f], the damped normal equations
+//! (JᵀJ + D) δ = −g split into
+//!
+//! ```text
+//! [ A  Bᵀ ] [δe]   [−g_e]        A = J_eᵀJ_e + D_e   (block diagonal: one block per chunk)
+//! [ B  C  ] [δf] = [−g_f]        B = J_fᵀJ_e,  C = J_fᵀJ_f + D_f
+//! ```
+//!
+//! and S δf = −g_f + B A⁻¹ g_e with S = C − B A⁻¹ Bᵀ. Per chunk, with A = L Lᵀ, W_p = the
+//! chunk's block of B for reduced block p, V_p = W_p L⁻ᵀ and y = L⁻¹ g_e:
+//! S_pq −= V_p V_qᵀ, rhs_p += V_p y, and afterwards δe = −L⁻ᵀ (y + Σ_p V_pᵀ δf_p).
+//! L, y and V are kept from the elimination for the back substitution and for the implicit
+//! products of the iterative solver.
+
+use crate::kernels::{
+    Shape, add_a_x, add_at_b, add_at_x, cholesky, right_solve_lower_transpose, solve_lower,
+    solve_lower_transpose, sub_a_bt, sub_a_x, with_shape,
+};
+use crate::parallel::{Executor, balanced_ranges, split_at_offsets};
+use crate::program::{NONE, Program};
+use crate::reduced::{ReducedLayout, TargetKind};
+use crate::simd::{Isa, Kernel, MulAdd, Plain, dispatch};
+
+/// Per-solve buffers of the elimination.
+pub(crate) struct SchurComplement {
+    /// Chunk ranges, one per worker.
+    partitions: Vec<core::ops::Range<usize>>,
+    v: Vec<f64>,
+    l: Vec<f64>,
+    y: Vec<f64>,
+    /// One target buffer per partition; `targets[0]` holds the sum after elimination.
+    targets: Vec<Vec<f64>>,
+    /// One right-hand side per partition; `rhs[0]` holds the sum.
+    rhs: Vec<Vec<f64>>,
+    /// Per-partition accumulators of the implicit product.
+    product: Vec<Vec<f64>>,
+    isa: Isa,
+}
+
+impl SchurComplement {
+    pub(crate) fn new(program: &Program, layout: &ReducedLayout, threads: usize) -> Self {
+        let partitions = balanced_ranges(program.chunks.len(), threads, |c| {
+            let ch = &program.chunks[c];
+            let k = ch.f.len();
+            ch.res.len() * 4 + k * (k + 1) / 2 + 1
+        });
+        let parts = partitions.len();
+        Self {
+            partitions,
+            v: vec![0.0; program.v_len],
+            l: vec![0.0; program.l_len],
+            y: vec![0.0; program.n_e],
+            targets: (0..parts).map(|_| vec![0.0; layout.len]).collect(),
+            rhs: (0..parts).map(|_| vec![0.0; program.n_f]).collect(),
+            product: if layout.kind == TargetKind::Implicit {
+                (0..parts).map(|_| vec![0.0; program.n_f]).collect()
+            } else {
+                Vec::new()
+            },
+            isa: Isa::detect(),
+        }
+    }
+
+    /// The reduced matrix (or C and the preconditioner blocks, for the implicit target).
+    pub(crate) fn target(&self) -> &[f64] {
+        &self.targets[0]
+    }
+
+    /// Mutable access to the reduced matrix, for in-place factorization.
+    pub(crate) fn target_mut(&mut self) -> &mut [f64] {
+        &mut self.targets[0]
+    }
+
+    /// The reduced right-hand side.
+    pub(crate) fn rhs(&self) -> &[f64] {
+        &self.rhs[0]
+    }
+
+    /// Forms the reduced system for the scaled Jacobian `jac`, scaled gradient `gradient`
+    /// and damping `diag` (the added diagonal, both over the whole tangent vector). Returns
+    /// false if an eliminated block's damped normal matrix is not positive definite.
+    pub(crate) fn eliminate(
+        &mut self,
+        program: &Program,
+        layout: &ReducedLayout,
+        jac: &[f64],
+        gradient: &[f64],
+        diag: &[f64],
+        exec: &Executor,
+    ) -> bool {
+        let v_ends: Vec<usize> = self
+            .partitions
+            .iter()
+            .map(|r| chunk_end(program, r.end, |c| c.v_off, program.v_len))
+            .collect();
+        let l_ends: Vec<usize> = self
+            .partitions
+            .iter()
+            .map(|r| chunk_end(program, r.end, |c| c.l_off, program.l_len))
+            .collect();
+        let y_ends: Vec<usize> = self
+            .partitions
+            .iter()
+            .map(|r| chunk_end(program, r.end, |c| c.e_col, program.n_e))
+            .collect();
+        let v_parts = split_at_offsets(&mut self.v, &v_ends);
+        let l_parts = split_at_offsets(&mut self.l, &l_ends);
+        let y_parts = split_at_offsets(&mut self.y, &y_ends);
+        let work: Vec<_> = self
+            .partitions
+            .iter()
+            .cloned()
+            .zip(v_parts)
+            .zip(l_parts)
+            .zip(y_parts)
+            .zip(self.targets.iter_mut().zip(self.rhs.iter_mut()))
+            .enumerate()
+            .map(|(p, ((((range, v), l), y), (t, r)))| (p, range, v, l, y, t, r))
+            .collect();
+        let isa = self.isa;
+        let ok = exec.map(work, |(p, range, v, l, y, target, rhs)| {
+            target.fill(0.0);
+            rhs.fill(0.0);
+            let task = EliminateTask {
+                program,
+                layout,
+                range,
+                jac,
+                gradient,
+                diag,
+                target,
+                rhs,
+                bufs: ChunkBuffers { v, l, y },
+                free: p == 0,
+            };
+            dispatch(isa, task)
+        });
+        let ok = ok.iter().all(|&o| o);
+        // Sum the partitions in order.
+        let (first, rest) = self.targets.split_at_mut(1);
+        for t in rest {
+            for (a, b) in first[0].iter_mut().zip(t.iter()) {
+                *a += b;
+            }
+        }
+        let (first, rest) = self.rhs.split_at_mut(1);
+        for r in rest {
+            for (a, b) in first[0].iter_mut().zip(r.iter()) {
+                *a += b;
+            }
+        }
+        let target = &mut self.targets[0];
+        let rhs = &mut self.rhs[0];
+        let n_e = program.n_e;
+        for (r, g) in rhs.iter_mut().zip(&gradient[n_e..]) {
+            *r -= g;
+        }
+        for (k, &addr) in layout.diag_addr.iter().enumerate() {
+            let size = program.f_size(k);
+            let ld = layout.ld(size);
+            let d = &diag[n_e + program.f_offset[k]..n_e + program.f_offset[k] + size];
+            if layout.kind == TargetKind::Implicit {
+                // Preconditioner block: C_aa + D_a − Σ V Vᵀ.
+                let c_addr = layout.c_diag_addr[k];
+                for j in 0..size {
+                    for i in 0..size {
+                        target[addr + i + j * size] += target[c_addr + i + j * size];
+                    }
+                }
+            }
+            for (j, dj) in d.iter().enumerate() {
+                target[addr + j + j * ld] += dj;
+            }
+        }
+        ok
+    }
+
+    /// δe from δf (both in the scaled tangent vector `delta`, whose reduced part is filled).
+    pub(crate) fn back_substitute(&self, program: &Program, delta: &mut [f64], exec: &Executor) {
+        let n_e = program.n_e;
+        let (de, df) = delta.split_at_mut(n_e);
+        let df: &[f64] = df;
+        let y_ends: Vec<usize> = self
+            .partitions
+            .iter()
+            .map(|r| chunk_end(program, r.end, |c| c.e_col, n_e))
+            .collect();
+        let parts = split_at_offsets(de, &y_ends);
+        let work: Vec<_> = self.partitions.iter().cloned().zip(parts).collect();
+        let isa = self.isa;
+        exec.map(work, |(range, out)| {
+            dispatch(
+                isa,
+                BackSubstituteTask {
+                    program,
+                    schur: self,
+                    range,
+                    df,
+                    out,
+                },
+            );
+        });
+    }
+
+    /// out = S x for the implicit target: (C + D_f) x − Σ_chunks V (Vᵀ x).
+    pub(crate) fn implicit_product(
+        &mut self,
+        program: &Program,
+        layout: &ReducedLayout,
+        diag_f: &[f64],
+        x: &[f64],
+        out: &mut [f64],
+        exec: &Executor,
+    ) {
+        let v = &self.v;
+        let isa = self.isa;
+        let parts: Vec<_> = self
+            .partitions
+            .iter()
+            .cloned()
+            .zip(self.product.iter_mut())
+            .collect();
+        exec.map(parts, |(range, acc)| {
+            acc.fill(0.0);
+            dispatch(
+                isa,
+                ProductTask {
+                    program,
+                    v,
+                    range,
+                    x,
+                    acc,
+                },
+            );
+        });
+        out.copy_from_slice(&self.product[0]);
+        for r in &self.product[1..] {
+            for (o, a) in out.iter_mut().zip(r) {
+                *o += a;
+            }
+        }
+        let c = &self.targets[0];
+        for b in &layout.blocks {
+            let (ra, ca) = (b.row as usize, b.col as usize);
+            let (mr, mc) = (program.f_size(ra), program.f_size(ca));
+            let (or, oc) = (program.f_offset[ra], program.f_offset[ca]);
+            let blk = &c[b.addr..b.addr + mr * mc];
+            add_a_x::<Plain>(&mut out[or..or + mr], blk, &x[oc..oc + mc], mr, mc);
+            if ra != ca {
+                add_at_x::<Plain>(&mut out[oc..oc + mc], blk, &x[or..or + mr], mr, mc);
+            }
+        }
+        for ((o, d), xv) in out.iter_mut().zip(diag_f).zip(x) {
+            *o += d * xv;
+        }
+    }
+}
+
+/// The value of `field` at chunk `end` (or `total` past the last chunk).
+fn chunk_end(
+    program: &Program,
+    end: usize,
+    field: impl Fn(&crate::program::Chunk) -> usize,
+    total: usize,
+) -> usize {
+    program.chunks.get(end).map_or(total, field)
+}
+
+/// Elimination of one partition of chunks (plus the free residuals for the first).
+struct EliminateTask<'a> {
+    program: &'a Program,
+    layout: &'a ReducedLayout,
+    range: core::ops::Range<usize>,
+    jac: &'a [f64],
+    gradient: &'a [f64],
+    diag: &'a [f64],
+    target: &'a mut [f64],
+    rhs: &'a mut [f64],
+    bufs: ChunkBuffers<'a>,
+    free: bool,
+}
+
+impl Kernel for EliminateTask<'_> {
+    type Output = bool;
+    #[inline(always)]
+    fn run<M: MulAdd>(self) -> bool {
+        let t = self;
+        let ok = with_shape!(t.program.shape, shape => eliminate_range::<_, M>(
+            shape, t.program, t.layout, t.range, t.jac, t.gradient, t.diag, t.target, t.rhs, t.bufs
+        ));
+        if t.free {
+            free_residuals::<M>(t.program, t.layout, t.jac, t.target);
+        }
+        ok
+    }
+}
+
+/// Back substitution of one partition of chunks.
+struct BackSubstituteTask<'a> {
+    program: &'a Program,
+    schur: &'a SchurComplement,
+    range: core::ops::Range<usize>,
+    df: &'a [f64],
+    out: &'a mut [f64],
+}
+
+impl Kernel for BackSubstituteTask<'_> {
+    type Output = ();
+    #[inline(always)]
+    fn run<M: MulAdd>(self) {
+        let BackSubstituteTask {
+            program,
+            schur,
+            range,
+            df,
+            out,
+        } = self;
+        let base = program.chunks.get(range.start).map_or(0, |c| c.e_col);
+        with_shape!(program.shape, shape => {
+            for ci in range.clone() {
+                let c = &program.chunks[ci];
+                let e = shape.e(c.e_size);
+                let z = &mut out[c.e_col - base..c.e_col - base + e];
+                z.copy_from_slice(&schur.y[c.e_col..c.e_col + e]);
+                for (p, &fp) in program.chunk_f[c.f.clone()].iter().enumerate() {
+                    let m = shape.f(program.f_size(fp as usize));
+                    let vo = c.v_off + program.chunk_f_voff[c.f.start + p];
+                    let off = program.f_offset[fp as usize];
+                    add_at_x::<M>(z, &schur.v[vo..vo + m * e], &df[off..off + m], m, e);
+                }
+                solve_lower_transpose(&schur.l[c.l_off..c.l_off + e * e], z, e);
+                for v in z.iter_mut() {
+                    *v = -*v;
+                }
+            }
+        });
+    }
+}
+
+/// The chunk part of an implicit product, −Σ V (Vᵀ x), for one partition.
+struct ProductTask<'a> {
+    program: &'a Program,
+    v: &'a [f64],
+    range: core::ops::Range<usize>,
+    x: &'a [f64],
+    acc: &'a mut [f64],
+}
+
+impl Kernel for ProductTask<'_> {
+    type Output = ();
+    #[inline(always)]
+    fn run<M: MulAdd>(self) {
+        let ProductTask {
+            program,
+            v,
+            range,
+            x,
+            acc,
+        } = self;
+        with_shape!(program.shape, shape => {
+            let mut z = [0.0; 16];
+            let mut zv = Vec::new();
+            for ci in range.clone() {
+                let c = &program.chunks[ci];
+                let e = shape.e(c.e_size);
+                let z: &mut [f64] = if e <= z.len() {
+                    z[..e].fill(0.0);
+                    &mut z[..e]
+                } else {
+                    zv.clear();
+                    zv.resize(e, 0.0);
+                    &mut zv
+                };
+                let fs = &program.chunk_f[c.f.clone()];
+                for (p, &fp) in fs.iter().enumerate() {
+                    let m = shape.f(program.f_size(fp as usize));
+                    let vo = c.v_off + program.chunk_f_voff[c.f.start + p];
+                    let off = program.f_offset[fp as usize];
+                    add_at_x::<M>(z, &v[vo..vo + m * e], &x[off..off + m], m, e);
+                }
+                for (p, &fp) in fs.iter().enumerate() {
+                    let m = shape.f(program.f_size(fp as usize));
+                    let vo = c.v_off + program.chunk_f_voff[c.f.start + p];
+                    let off = program.f_offset[fp as usize];
+                    sub_a_x::<M>(&mut acc[off..off + m], &v[vo..vo + m * e], z, m, e);
+                }
+            }
+        });
+    }
+}
+
+/// A partition's slices of the V, L and y buffers.
+struct ChunkBuffers<'a> {
+    v: &'a mut [f64],
+    l: &'a mut [f64],
+    y: &'a mut [f64],
+}
+
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn eliminate_range<S: Shape, M: MulAdd>(
+    shape: S,
+    program: &Program,
+    layout: &ReducedLayout,
+    range: core::ops::Range<usize>,
+    jac: &[f64],
+    gradient: &[f64],
+    diag: &[f64],
+    target: &mut [f64],
+    rhs: &mut [f64],
+    bufs: ChunkBuffers<'_>,
+) -> bool {
+    let Some(first) = program.chunks.get(range.start) else {
+        return true;
+    };
+    let (v_base, l_base, y_base) = (first.v_off, first.l_off, first.e_col);
+    let full = layout.full_pairs();
+    let mut ok = true;
+    for ci in range {
+        let c = &program.chunks[ci];
+        let e = shape.e(c.e_size);
+        let v_len = program
+            .chunks
+            .get(ci + 1)
+            .map_or(program.v_len, |n| n.v_off)
+            - c.v_off;
+        let v = &mut bufs.v[c.v_off - v_base..c.v_off - v_base + v_len];
+        let l = &mut bufs.l[c.l_off - l_base..c.l_off - l_base + e * e];
+        let y = &mut bufs.y[c.e_col - y_base..c.e_col - y_base + e];
+        l.fill(0.0);
+        v.fill(0.0);
+        let voffs = &program.chunk_f_voff[c.f.clone()];
+        for ri in c.res.clone() {
+            let r = &program.res[ri];
+            let rows = shape.rows(r.rows as usize);
+            let jr = &jac[r.jac_off..];
+            let slots = program.residual_slots(r);
+            let es = slots[r.e_slot as usize];
+            let je = &jr[es.offset as usize..es.offset as usize + rows * e];
+            add_at_b::<M>(l, 0, e, je, je, rows, e, e);
+            for (s, info) in slots.iter().zip(program.residual_slot_info(r)) {
+                if info.f_local == NONE {
+                    continue;
+                }
+                let f = shape.f(s.cols as usize);
+                let jf = &jr[s.offset as usize..s.offset as usize + rows * f];
+                add_at_b::<M>(v, voffs[info.f_local as usize], f, jf, je, rows, f, e);
+            }
+            for cp in &layout.c_pairs[layout.c_start[ri]..layout.c_start[ri + 1]] {
+                let sa = slots[cp.row_slot as usize];
+                let sb = slots[cp.col_slot as usize];
+                let fa = shape.f(sa.cols as usize);
+                let fb = shape.f(sb.cols as usize);
+                let ja = &jr[sa.offset as usize..sa.offset as usize + rows * fa];
+                let jb = &jr[sb.offset as usize..sb.offset as usize + rows * fb];
+                add_at_b::<M>(target, cp.addr, layout.ld(fa), ja, jb, rows, fa, fb);
+            }
+        }
+        for k in 0..e {
+            l[k + k * e] += diag[c.e_col + k];
+        }
+        if !cholesky(l, e) {
+            ok = false;
+            continue;
+        }
+        y.copy_from_slice(&gradient[c.e_col..c.e_col + e]);
+        solve_lower(l, y, e);
+        let fs = &program.chunk_f[c.f.clone()];
+        for (p, &fp) in fs.iter().enumerate() {
+            let m = shape.f(program.f_size(fp as usize));
+            let vp = &mut v[voffs[p]..voffs[p] + m * e];
+            right_solve_lower_transpose::<M>(vp, l, m, e);
+            let off = program.f_offset[fp as usize];
+            add_a_x::<M>(&mut rhs[off..off + m], vp, y, m, e);
+        }
+        let addrs = &layout.vv_addr[layout.vv_start[ci]..layout.vv_start[ci + 1]];
+        let v: &[f64] = v;
+        if full {
+            let mut k = 0;
+            for (p, &fp) in fs.iter().enumerate() {
+                let mp = shape.f(program.f_size(fp as usize));
+                let vp = &v[voffs[p]..voffs[p] + mp * e];
+                for (q, &fq) in fs[..=p].iter().enumerate() {
+                    let mq = shape.f(program.f_size(fq as usize));
+                    let vq = &v[voffs[q]..voffs[q] + mq * e];
+                    sub_a_bt::<M>(target, addrs[k], layout.ld(mp), vp, vq, mp, mq, e);
+                    k += 1;
+                }
+            }
+        } else {
+            for (p, &fp) in fs.iter().enumerate() {
+                let mp = shape.f(program.f_size(fp as usize));
+                let vp = &v[voffs[p]..voffs[p] + mp * e];
+                sub_a_bt::<M>(target, addrs[p], mp, vp, vp, mp, mp, e);
+            }
+        }
+    }
+    ok
+}
+
+/// JᵀJ blocks of the residuals that have no eliminated argument.
+#[inline(always)]
+fn free_residuals<M: MulAdd>(
+    program: &Program,
+    layout: &ReducedLayout,
+    jac: &[f64],
+    target: &mut [f64],
+) {
+    for ri in program.n_chunk_residuals..program.res.len() {
+        let r = &program.res[ri];
+        let rows = r.rows as usize;
+        let jr = &jac[r.jac_off..];
+        let slots = program.residual_slots(r);
+        for cp in &layout.c_pairs[layout.c_start[ri]..layout.c_start[ri + 1]] {
+            let sa = slots[cp.row_slot as usize];
+            let sb = slots[cp.col_slot as usize];
+            let (fa, fb) = (sa.cols as usize, sb.cols as usize);
+            let ja = &jr[sa.offset as usize..sa.offset as usize + rows * fa];
+            let jb = &jr[sb.offset as usize..sb.offset as usize + rows * fb];
+            add_at_b::<M>(target, cp.addr, layout.ld(fa), ja, jb, rows, fa, fb);
+        }
+    }
+}

@@ -1,0 +1,300 @@
+//! The generic solver on synthetic problems: the three reduced solvers agree with each other
+//! and with solving without elimination, manifolds and constant blocks behave, thread counts
+//! give deterministic results, covariances match (JᵀJ)⁻¹, and singular steps raise damping.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
+mod common;
+
+use approx::assert_relative_eq;
+use common::{perturb, split_problem, synthetic_bal};
+use ibc_bundle_adjust::{
+    CostFunction, Jacobians, LinearSolverType, Loss, Problem, SolverOptions, Termination,
+};
+use nalgebra::{DMatrix, DVector, SMatrix};
+
+fn options(solver: LinearSolverType) -> SolverOptions {
+    let mut o = SolverOptions::default();
+    o.linear_solver = solver;
+    o.max_iterations = 100;
+    o
+}
+
+#[test]
+fn reduced_solvers_agree_on_a_split_camera_problem() {
+    let truth = synthetic_bal(7, 8, 120, 0.5);
+    let truth_cost = truth.cost(Loss::Trivial).unwrap();
+    let mut bal = truth.clone();
+    perturb(&mut bal, 8, 0.01, 0.05, 0.05);
+    let mut costs = Vec::new();
+    for solver in [
+        LinearSolverType::DenseSchur,
+        LinearSolverType::SparseSchur,
+        LinearSolverType::IterativeSchur,
+    ] {
+        let (mut problem, blocks) = split_problem(&bal, Loss::Trivial);
+        // Gauge: hold the first pose and the second camera's intrinsics.
+        problem.set_constant(blocks.poses[0], true).unwrap();
+        problem.set_constant(blocks.intrinsics[1], true).unwrap();
+        let mut o = options(solver);
+        o.eta = 1e-3;
+        let summary = problem.solve(&o).unwrap();
+        assert!(
+            summary.termination.is_converged(),
+            "{solver:?}: {:?}",
+            summary.termination
+        );
+        assert_eq!(summary.linear_solver, solver);
+        // The least-squares optimum is at or below the cost of the true scene.
+        assert!(summary.final_cost <= truth_cost, "{}", summary.report());
+        assert!(summary.initial_cost > 20.0 * truth_cost);
+        costs.push(summary.final_cost);
+    }
+    assert_relative_eq!(costs[0], costs[1], max_relative = 1e-9);
+    assert_relative_eq!(costs[0], costs[2], max_relative = 1e-6);
+}
+
+#[test]
+fn eliminating_points_matches_solving_without_elimination() {
+    let mut bal = synthetic_bal(11, 5, 40, 0.3);
+    perturb(&mut bal, 12, 0.01, 0.05, 0.05);
+    let (mut eliminated, _) = bal.to_problem(Loss::Cauchy(2.0)).unwrap();
+    let (mut plain, blocks) = bal.to_problem(Loss::Cauchy(2.0)).unwrap();
+    for &p in &blocks.points {
+        plain.set_eliminated(p, false).unwrap();
+    }
+    let mut o = options(LinearSolverType::DenseSchur);
+    o.automatic_elimination = false;
+    o.max_iterations = 8;
+    o.function_tolerance = 0.0;
+    o.parameter_tolerance = 0.0;
+    o.gradient_tolerance = 0.0;
+    let a = eliminated.solve(&o).unwrap();
+    let b = plain.solve(&o).unwrap();
+    assert_eq!(a.num_eliminated, 3 * bal.points.len());
+    assert_eq!(b.num_eliminated, 0);
+    // Same steps in exact arithmetic: the iteration logs agree to rounding.
+    for (x, y) in a.log.iter().zip(&b.log) {
+        assert_relative_eq!(x.cost, y.cost, max_relative = 1e-8);
+        assert_eq!(x.step_is_successful, y.step_is_successful);
+    }
+}
+
+#[test]
+fn results_are_deterministic_per_thread_count() {
+    let mut bal = synthetic_bal(21, 8, 200, 0.5);
+    perturb(&mut bal, 22, 0.01, 0.05, 0.05);
+    let run = |threads: usize| {
+        let mut b = bal.clone();
+        let mut o = options(LinearSolverType::DenseSchur);
+        o.num_threads = threads;
+        let s = b.solve(Loss::Huber(1.0), &o).unwrap();
+        assert_eq!(s.num_threads, threads);
+        (s.final_cost, b.cameras.clone(), b.points.clone())
+    };
+    let one = run(1);
+    let two = run(2);
+    let two_again = run(2);
+    assert_eq!(two.0.to_bits(), two_again.0.to_bits());
+    assert_eq!(two.1, two_again.1);
+    assert_eq!(two.2, two_again.2);
+    assert_relative_eq!(one.0, two.0, max_relative = 1e-9);
+}
+
+/// r = A x − b: a linear model with a known covariance (AᵀA)⁻¹.
+struct Linear {
+    a: SMatrix<f64, 3, 4>,
+    b: [f64; 3],
+}
+
+impl CostFunction for Linear {
+    fn num_residuals(&self) -> usize {
+        3
+    }
+    fn parameter_block_sizes(&self) -> &[usize] {
+        &[2, 2]
+    }
+    fn evaluate(&self, p: &[&[f64]], r: &mut [f64], j: Option<&mut Jacobians<'_>>) -> bool {
+        let x = nalgebra::Vector4::new(p[0][0], p[0][1], p[1][0], p[1][1]);
+        let y = self.a * x;
+        for k in 0..3 {
+            r[k] = y[k] - self.b[k];
+        }
+        if let Some(j) = j {
+            j.set(0, &self.a.fixed_columns::<2>(0).into_owned());
+            j.set(1, &self.a.fixed_columns::<2>(2).into_owned());
+        }
+        true
+    }
+}
+
+#[test]
+fn covariance_matches_the_inverse_normal_matrix() {
+    let mut problem = Problem::new();
+    let e = problem.add_parameter_block(&[0.3, -0.2]).unwrap();
+    let f = problem.add_parameter_block(&[1.0, 2.0]).unwrap();
+    problem.set_eliminated(e, true).unwrap();
+    let mut stacked = DMatrix::zeros(0, 4);
+    for k in 0..4 {
+        let a = SMatrix::<f64, 3, 4>::from_fn(|i, j| {
+            (((i * 5 + j * 3 + k * 7).pow(2)) as f64 * 0.37).sin()
+        });
+        problem
+            .add_residual_block(
+                Linear {
+                    a,
+                    b: [1.0, 0.5, -0.3],
+                },
+                Loss::Trivial,
+                &[e, f],
+            )
+            .unwrap();
+        let rows = stacked.nrows();
+        stacked = stacked.insert_rows(rows, 3, 0.0);
+        stacked.view_mut((rows, 0), (3, 4)).copy_from(&a);
+    }
+    let summary = problem.solve(&SolverOptions::default()).unwrap();
+    assert!(summary.termination.is_converged());
+    let cov = problem.covariance(&[f], &SolverOptions::default()).unwrap();
+    let full = (stacked.transpose() * &stacked).try_inverse().unwrap();
+    assert_relative_eq!(
+        cov.matrix().clone(),
+        full.view((2, 2), (2, 2)).into_owned(),
+        max_relative = 1e-9
+    );
+    assert_relative_eq!(
+        cov.block(f, f).unwrap(),
+        full.view((2, 2), (2, 2)).into_owned(),
+        max_relative = 1e-9
+    );
+    assert!(problem.covariance(&[e], &SolverOptions::default()).is_err());
+    // Rank-deficient information (columns spanning two directions only) is reported.
+    let mut singular = Problem::new();
+    let e = singular.add_parameter_block(&[0.0, 0.0]).unwrap();
+    let f = singular.add_parameter_block(&[0.0, 0.0]).unwrap();
+    singular.set_eliminated(e, true).unwrap();
+    for k in 0..4 {
+        let a = SMatrix::<f64, 3, 4>::from_fn(|i, j| ((i * 5 + j * 3 + k * 7) as f64 * 0.7).sin());
+        singular
+            .add_residual_block(
+                Linear {
+                    a,
+                    b: [1.0, 0.5, -0.3],
+                },
+                Loss::Trivial,
+                &[e, f],
+            )
+            .unwrap();
+    }
+    assert!(matches!(
+        singular.covariance(&[f], &SolverOptions::default()),
+        Err(ibc_bundle_adjust::BundleAdjustError::SingularInformation)
+    ));
+}
+
+/// r = [x − 1, x − 1] for a block [x, y]: y does not enter, so JᵀJ is singular.
+struct IgnoresY;
+
+impl CostFunction for IgnoresY {
+    fn num_residuals(&self) -> usize {
+        2
+    }
+    fn parameter_block_sizes(&self) -> &[usize] {
+        &[2]
+    }
+    fn evaluate(&self, p: &[&[f64]], r: &mut [f64], j: Option<&mut Jacobians<'_>>) -> bool {
+        r[0] = p[0][0] - 1.0;
+        r[1] = p[0][0] - 1.0;
+        if let Some(j) = j {
+            j.set(0, &SMatrix::<f64, 2, 2>::new(1.0, 0.0, 1.0, 0.0));
+        }
+        true
+    }
+}
+
+#[test]
+fn a_singular_step_raises_the_damping() {
+    let mut problem = Problem::new();
+    let x = problem.add_parameter_block(&[5.0, 3.0]).unwrap();
+    problem
+        .add_residual_block(IgnoresY, Loss::Trivial, &[x])
+        .unwrap();
+    let mut o = SolverOptions::default();
+    // The damping of the y column, min_lm_diagonal / μ, underflows to zero at the start: the
+    // damped normal matrix is singular until μ has shrunk enough.
+    o.min_lm_diagonal = 1e-310;
+    o.initial_trust_region_radius = 1e16;
+    let summary = problem.solve(&o).unwrap();
+    let invalid: Vec<_> = summary.log[1..]
+        .iter()
+        .take_while(|l| !l.step_is_successful)
+        .collect();
+    assert!(!invalid.is_empty(), "{}", summary.report());
+    assert!(
+        invalid
+            .windows(2)
+            .all(|w| w[1].trust_region_radius < w[0].trust_region_radius)
+    );
+    assert!(invalid[0].trust_region_radius < 1e16);
+    assert!(summary.termination.is_converged(), "{}", summary.report());
+    assert!(summary.final_cost < 1e-20);
+    assert_eq!(problem.parameter_block(x).unwrap()[1], 3.0);
+}
+
+#[test]
+fn constant_blocks_do_not_move_and_fixed_cost_is_counted() {
+    let mut bal = synthetic_bal(31, 4, 30, 0.2);
+    perturb(&mut bal, 32, 0.01, 0.05, 0.05);
+    let (mut problem, blocks) = bal.to_problem(Loss::Trivial).unwrap();
+    let before = problem.parameter_block(blocks.cameras[0]).unwrap().to_vec();
+    problem.set_constant(blocks.cameras[0], true).unwrap();
+    // A point seen only by the constant camera: its residual still counts as free (the
+    // point moves); make every point constant for one camera's fixed-cost residuals.
+    let summary = problem.solve(&SolverOptions::default()).unwrap();
+    assert_eq!(
+        problem.parameter_block(blocks.cameras[0]).unwrap(),
+        &before[..]
+    );
+    assert!(summary.final_cost < summary.initial_cost);
+    let mut all_constant = bal.to_problem(Loss::Trivial).unwrap();
+    for &b in all_constant.1.cameras.iter().chain(&all_constant.1.points) {
+        all_constant.0.set_constant(b, true).unwrap();
+    }
+    let s = all_constant.0.solve(&SolverOptions::default()).unwrap();
+    assert_eq!(s.termination, Termination::NoFreeParameters);
+    assert_relative_eq!(
+        s.initial_cost,
+        bal.cost(Loss::Trivial).unwrap(),
+        max_relative = 1e-12
+    );
+    assert_eq!(s.initial_cost, s.final_cost);
+}
+
+#[test]
+fn iteration_log_is_consistent() {
+    let mut bal = synthetic_bal(41, 5, 50, 0.3);
+    perturb(&mut bal, 42, 0.01, 0.05, 0.05);
+    let s = bal.solve(Loss::Trivial, &SolverOptions::default()).unwrap();
+    assert_eq!(s.log[0].iteration, 0);
+    assert_eq!(s.log.len(), s.iterations + 1);
+    assert_eq!(
+        s.accepted_iterations,
+        s.log
+            .iter()
+            .skip(1)
+            .filter(|l| l.step_is_successful)
+            .count()
+    );
+    assert!(s.linear_solves >= s.iterations);
+    let accepted: Vec<f64> = s
+        .log
+        .iter()
+        .filter(|l| l.step_is_successful)
+        .map(|l| l.cost)
+        .collect();
+    assert!(accepted.windows(2).all(|w| w[1] <= w[0]));
+    assert_relative_eq!(accepted[accepted.len() - 1], s.final_cost);
+    assert!(!s.report().is_empty());
+    assert!(s.times.total >= s.times.linear_solver());
+    let g = DVector::from_iterator(s.log.len(), s.log.iter().map(|l| l.gradient_max_norm));
+    assert!(g[g.len() - 1] < g[0]);
+}
