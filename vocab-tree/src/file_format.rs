@@ -31,12 +31,12 @@
 use std::io::{Read, Write};
 use std::path::Path;
 
-use crate::checksum::Xxh64;
 use crate::descriptor::{Descriptor, DescriptorKind};
 use crate::error::{FileError, Result, VocabError};
 use crate::scoring::Scoring;
 use crate::vocabulary::{Vocabulary, check_tree};
 use crate::weighting::Weighting;
+use xxhash_rust::xxh64::Xxh64;
 
 /// The magic bytes that open a vocabulary file.
 pub const MAGIC: [u8; 8] = *b"IBCVOCAB";
@@ -51,7 +51,7 @@ const READ_CHUNK: usize = 256 * 1024;
 /// The checksum stored in the last 8 bytes of a file: XXH64 with seed 0 of every byte before
 /// it (the value `xxhsum -H64` prints for the file without its last 8 bytes).
 pub fn checksum(body: &[u8]) -> u64 {
-    crate::checksum::xxh64(body, 0)
+    xxhash_rust::xxh64::xxh64(body, 0)
 }
 
 fn u32_at(b: &[u8], at: usize) -> u32 {
@@ -298,4 +298,25 @@ fn read_up_to(source: &mut impl Read, buf: &mut [u8]) -> std::io::Result<usize> 
         }
     }
     Ok(got)
+}
+
+#[cfg(test)]
+mod checksum_tests {
+    use super::checksum;
+
+    /// The documented checksum is XXH64 with seed 0: reference digests of the reference C
+    /// implementation (`xxhsum -H1`), as reproduced by python-xxhash.
+    #[test]
+    fn checksum_is_the_reference_xxh64() {
+        let long: Vec<u8> = (0..768).map(|i| (i % 256) as u8).collect();
+        let cases: [(&[u8], u64); 4] = [
+            (b"", 0xef46_db37_51d8_e999),
+            (b"abc", 0x44bc_2cf5_ad77_0999),
+            (&long, 0x8e03_c838_c596_036f),
+            (b"0123456789abcdef0123456789abcdef!", 0x8aff_f4da_ac4e_677e),
+        ];
+        for (data, expected) in cases {
+            assert_eq!(checksum(data), expected, "input of {} bytes", data.len());
+        }
+    }
 }

@@ -1,7 +1,6 @@
 #![doc = include_str!("../README.md")]
 
 mod bow;
-mod checksum;
 mod database;
 pub mod dbow2_text;
 mod descent;

@@ -1,0 +1,245 @@
+//! Benchmarks of the calibration pipeline's stages (`ibc_pipeline::calib`) on the default
+//! garage scenario at a fifth of its size (100 frames x 4 fisheyes, 80 map images), with
+//! same-run baselines:
+//!
+//! - matching one image to the map: the pipeline's matcher (the candidates' map points pooled
+//!   per direct-index node) against matching each of the 10 candidate images in turn with
+//!   `ibc_vocab_tree::match_by_nodes` (DBoW2's way) and by brute force (`match_brute_force`,
+//!   as CamOdoCal does);
+//! - refinement on two threads (the pipeline's fixed count) against one thread.
+//!
+//! Run with `cargo bench -p ibc-benches --bench pipeline`.
+#![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)]
+
+use std::hint::black_box;
+
+use criterion::{Criterion, criterion_group, criterion_main};
+use ibc_bundle_adjust::{RigObservation, RigRefinement, RigRefinementOptions};
+use ibc_pipeline::calib::localization::{CameraLocalizer, match_to_map};
+use ibc_pipeline::calib::{
+    CalibrationOptions, MapIndex, calibrate, calibrate_hand_eye, initialize, localize_image,
+    localize_log, refine, select_frame_sets,
+};
+use ibc_pipeline::calib::{HandEyeSolver, NoProgress};
+use ibc_pipeline::data::{BinaryDescriptor, Map};
+use ibc_pipeline::sim::{Scenario, SimulatedWorld};
+use ibc_vocab_tree::{MatchOptions, QueryOptions, match_brute_force, match_by_nodes};
+
+/// The correspondences of one image matched to each candidate in turn (the baselines):
+/// `by_nodes` with the direct index, else brute force.
+fn match_each_candidate(
+    index: &MapIndex<BinaryDescriptor>,
+    map: &Map<BinaryDescriptor>,
+    descriptors: &[BinaryDescriptor],
+    by_nodes: bool,
+) -> usize {
+    let (bow, fv) = index
+        .vocabulary
+        .transform_with_features(descriptors, index.direct_index_levels)
+        .unwrap();
+    let mut n = 0;
+    for r in index.database.query(&bow, &QueryOptions::default()) {
+        let image = &map.images[r.image as usize];
+        let matches = if by_nodes {
+            match_by_nodes(
+                descriptors,
+                &fv,
+                &image.features.descriptors,
+                index.database.features(r.image).unwrap(),
+                &MatchOptions::default(),
+            )
+        } else {
+            match_brute_force(
+                descriptors,
+                &image.features.descriptors,
+                &MatchOptions::default(),
+            )
+        }
+        .unwrap();
+        n += matches
+            .iter()
+            .filter(|m| image.point_ids[m.train as usize].is_some())
+            .count();
+    }
+    n
+}
+
+fn stages(c: &mut Criterion) {
+    let scenario = Scenario::builtin("garage").unwrap().with_scale(0.2);
+    let world = SimulatedWorld::simulate(&scenario).unwrap();
+    let options = CalibrationOptions::default();
+    let cameras: Vec<_> = world
+        .map_rig
+        .cameras
+        .iter()
+        .map(|c| c.camera.clone())
+        .collect();
+    let index = MapIndex::train(&world.map, &options.vocabulary).unwrap();
+    let images: Vec<(usize, usize)> = (0..8).map(|i| (i * 11 % 100, i % 4)).collect();
+
+    let mut g = c.benchmark_group("pipeline");
+    g.sample_size(10);
+    g.bench_function("vocabulary: train and index (80 map images)", |b| {
+        b.iter(|| MapIndex::train(black_box(&world.map), &options.vocabulary).unwrap())
+    });
+    g.bench_function("match 8 images: pooled per node (pipeline)", |b| {
+        b.iter(|| {
+            images
+                .iter()
+                .map(|&(f, k)| {
+                    let features = &world.log.frames[f].images[k];
+                    match_to_map(&index, &world.map, features, &options.localization)
+                        .unwrap()
+                        .len()
+                })
+                .sum::<usize>()
+        })
+    });
+    g.bench_function("match 8 images: each candidate by nodes (baseline)", |b| {
+        b.iter(|| {
+            images
+                .iter()
+                .map(|&(f, k)| {
+                    let d = &world.log.frames[f].images[k].descriptors;
+                    match_each_candidate(&index, &world.map, d, true)
+                })
+                .sum::<usize>()
+        })
+    });
+    g.bench_function(
+        "match 8 images: each candidate brute force (baseline)",
+        |b| {
+            b.iter(|| {
+                images
+                    .iter()
+                    .map(|&(f, k)| {
+                        let d = &world.log.frames[f].images[k].descriptors;
+                        match_each_candidate(&index, &world.map, d, false)
+                    })
+                    .sum::<usize>()
+            })
+        },
+    );
+    let localizers: Vec<_> = cameras
+        .iter()
+        .map(|c| CameraLocalizer::new(c, &options.localization).unwrap())
+        .collect();
+    g.bench_function("localize 8 images (match + RANSAC PnP)", |b| {
+        b.iter(|| {
+            images
+                .iter()
+                .map(|&(f, k)| {
+                    let features = &world.log.frames[f].images[k];
+                    localize_image(
+                        &index,
+                        &world.map,
+                        &localizers[k],
+                        features,
+                        &options.localization,
+                        1,
+                    )
+                    .unwrap()
+                    .inliers
+                    .len()
+                })
+                .sum::<usize>()
+        })
+    });
+    g.bench_function("localize the log (400 images, rayon)", |b| {
+        b.iter(|| {
+            localize_log(
+                &index,
+                &world.map,
+                &cameras,
+                &world.log,
+                &options.localization,
+                &NoProgress,
+            )
+            .unwrap()
+        })
+    });
+    let localizations = localize_log(
+        &index,
+        &world.map,
+        &cameras,
+        &world.log,
+        &options.localization,
+        &NoProgress,
+    )
+    .unwrap();
+    let sets = select_frame_sets(&localizations, &options.frame_sets);
+    g.bench_function("frame sets + initialization (100 sets)", |b| {
+        b.iter(|| {
+            let sets = select_frame_sets(&localizations, &options.frame_sets);
+            initialize(
+                &sets,
+                &localizations,
+                &world.map,
+                &world.log,
+                &cameras,
+                &options.initialization,
+            )
+            .unwrap()
+        })
+    });
+    let init = initialize(
+        &sets,
+        &localizations,
+        &world.map,
+        &world.log,
+        &cameras,
+        &options.initialization,
+    )
+    .unwrap();
+    let calibration = calibrate(&world.map, &world.log, &world.map_rig, &options).unwrap();
+    let observations = calibration.observations.clone();
+    g.bench_function(
+        "refinement (100 sets, 40k correspondences), 2 threads",
+        |b| {
+            b.iter(|| {
+                refine(
+                    &cameras,
+                    &init.rig_from_camera,
+                    &init.world_from_rig,
+                    &observations,
+                    &options.refinement,
+                )
+                .unwrap()
+            })
+        },
+    );
+    // The same problem solved by `ibc_bundle_adjust` directly on one thread.
+    let problem = RigRefinement {
+        cameras: cameras.clone(),
+        rig_from_camera: init.rig_from_camera.clone(),
+        world_from_rig: init.world_from_rig.clone(),
+        observations: observations
+            .iter()
+            .map(|o| RigObservation {
+                frame: o.set as usize,
+                camera: o.camera as usize,
+                world_point: o.point.coords,
+                pixel: o.pixel,
+            })
+            .collect(),
+    };
+    let mut one_thread = RigRefinementOptions::default();
+    one_thread.solver.num_threads = 1;
+    g.bench_function("refinement, 1 thread (baseline)", |b| {
+        b.iter(|| problem.refine(&one_thread).unwrap())
+    });
+    let poses: Vec<_> = calibration
+        .rig_trajectory()
+        .map(|(f, p)| (*p, world.log.frames[f].world_from_odometry.unwrap()))
+        .collect();
+    g.bench_function("hand-eye, planar (100 poses, window 8)", |b| {
+        b.iter(|| calibrate_hand_eye(HandEyeSolver::Planar, &poses, &options.hand_eye).unwrap())
+    });
+    g.bench_function("calibrate: everything (100 frames x 4 cameras)", |b| {
+        b.iter(|| calibrate(&world.map, &world.log, &world.map_rig, &options).unwrap())
+    });
+    g.finish();
+}
+
+criterion_group!(benches, stages);
+criterion_main!(benches);

@@ -1,0 +1,444 @@
+//! The whole calibration: [`calibrate`] runs the stages in order and gathers what the reports
+//! need into a [`Calibration`].
+
+use std::sync::Arc;
+use std::time::Instant;
+
+use ibc_camera_models::{Camera, Rig};
+use ibc_vocab_tree::{Descriptor, Vocabulary};
+use nalgebra::Isometry3;
+
+use super::accuracy::{
+    CameraAccuracy, HandEyeAccuracy, camera_accuracy, hand_eye_accuracy, true_rig_from_odometry,
+};
+use super::error::CalibrationError;
+use super::frame_sets::{FrameSet, select_frame_sets};
+use super::hand_eye::{HandEye, HandEyeFailure, HandEyeSolver, calibrate_hand_eye, choose_solver};
+use super::initialization::{Initialization, initialize};
+use super::localization::{Localizations, localize_log};
+use super::map_index::MapIndex;
+use super::options::{CalibrationOptions, evenly_spaced};
+use super::progress::{NoProgress, Progress, Stage};
+use super::refinement::{Refinement, RigObservation, refine, reprojection_error};
+use crate::data::{GroundTruth, Map, OdometryKind, RigLog};
+
+/// Wall-clock seconds per stage (not deterministic: leave them out of comparisons).
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+pub struct Timing {
+    /// Training (or taking) the vocabulary and indexing the map.
+    pub vocabulary: f64,
+    /// Localizing every image.
+    pub localization: f64,
+    /// Frame-set selection and initialization.
+    pub initialization: f64,
+    /// Refinement.
+    pub refinement: f64,
+    /// Hand-eye calibration.
+    pub hand_eye: f64,
+    /// Everything.
+    pub total: f64,
+}
+
+/// The result of [`calibrate`]: the estimate and everything the reports show about how it
+/// was reached.
+#[derive(Clone, Debug)]
+pub struct Calibration {
+    /// Camera names, from the rig log.
+    pub camera_names: Vec<String>,
+    /// The cameras' intrinsics, from the camera file.
+    pub cameras: Vec<Camera>,
+    /// The extrinsics the camera file held (the configuration before the calibration), in
+    /// its own rig frame.
+    pub prior_rig_from_camera: Vec<Isometry3<f64>>,
+    /// The estimated extrinsics `rig_from_camera`; the rig frame is camera 0's.
+    pub rig_from_camera: Vec<Isometry3<f64>>,
+    /// The kind of odometry in the log.
+    pub odometry: OdometryKind,
+    /// Every image's localization, `[frame][camera]`.
+    pub localizations: Localizations,
+    /// The kept frame sets.
+    pub frame_sets: Vec<FrameSet>,
+    /// The initialization.
+    pub initialization: Initialization,
+    /// The refinement (its rig poses are those of [`frame_sets`](Self::frame_sets)).
+    pub refinement: Refinement,
+    /// The refinement's observations.
+    pub observations: Vec<RigObservation>,
+    /// Reprojection error of each observation at the initial estimate, pixels (NaN where it
+    /// cannot be projected).
+    pub initial_errors_px: Vec<f64>,
+    /// The same at the refined estimate.
+    pub final_errors_px: Vec<f64>,
+    /// The hand-eye method used, `None` when no hand-eye calibration was asked for (no
+    /// odometry, or skipped).
+    pub hand_eye_solver: Option<HandEyeSolver>,
+    /// The hand-eye calibration: `None` when not asked for.
+    pub hand_eye: Option<Result<HandEye, HandEyeFailure>>,
+    /// Seconds per stage.
+    pub timing: Timing,
+}
+
+/// The errors of a calibration against ground truth (see [`super::accuracy`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Accuracy {
+    /// Per camera, relative to camera 0 (`None` for camera 0).
+    pub cameras: Vec<Option<CameraAccuracy>>,
+    /// The hand-eye errors, when both a result and a true `rig_from_odometry` exist.
+    pub hand_eye: Option<HandEyeAccuracy>,
+    /// Mean reprojection error of the refinement's observations at the true poses, pixels:
+    /// what the pixel noise alone (and any map error) gives.
+    pub reprojection_error_at_truth_px: f64,
+}
+
+/// Mean of the finite values (NaN when there is none).
+pub fn finite_mean(values: &[f64]) -> f64 {
+    let (sum, n) = values
+        .iter()
+        .filter(|v| v.is_finite())
+        .fold((0.0, 0usize), |(s, n), v| (s + v, n + 1));
+    if n == 0 { f64::NAN } else { sum / n as f64 }
+}
+
+impl Calibration {
+    /// Number of frame sets used.
+    pub fn frame_sets_used(&self) -> usize {
+        self.frame_sets.len()
+    }
+
+    /// Mean number of localized cameras per frame set (the paper's "poses per set").
+    pub fn mean_poses_per_set(&self) -> f64 {
+        let n = self.frame_sets.len().max(1) as f64;
+        self.frame_sets
+            .iter()
+            .map(FrameSet::localized)
+            .sum::<usize>() as f64
+            / n
+    }
+
+    /// Number of 2D-3D correspondences in the refinement.
+    pub fn correspondences(&self) -> usize {
+        self.observations.len()
+    }
+
+    /// Mean reprojection error before refinement, pixels.
+    pub fn initial_error_px(&self) -> f64 {
+        finite_mean(&self.initial_errors_px)
+    }
+
+    /// Mean reprojection error after refinement, pixels.
+    pub fn final_error_px(&self) -> f64 {
+        finite_mean(&self.final_errors_px)
+    }
+
+    /// The refined rig poses with the log frame each belongs to.
+    pub fn rig_trajectory(&self) -> impl Iterator<Item = (usize, &Isometry3<f64>)> {
+        self.frame_sets
+            .iter()
+            .map(|s| s.frame)
+            .zip(&self.refinement.world_from_rig)
+    }
+
+    /// The errors against ground truth.
+    ///
+    /// # Errors
+    /// [`CalibrationError::Truth`] when the truth has another number of cameras or fewer
+    /// rig poses than the log's frames.
+    pub fn accuracy(&self, truth: &GroundTruth) -> Result<Accuracy, CalibrationError> {
+        let cameras = camera_accuracy(&self.rig_from_camera, &truth.rig_from_camera)?;
+        let hand_eye = match (&self.hand_eye, true_rig_from_odometry(truth)) {
+            (Some(Ok(h)), Some(t)) => Some(hand_eye_accuracy(h, &t)),
+            _ => None,
+        };
+        let mut errors = Vec::with_capacity(self.observations.len());
+        for o in &self.observations {
+            let frame = self.frame_sets[o.set as usize].frame;
+            let world_from_rig = truth.world_from_rig.get(frame).ok_or_else(|| {
+                CalibrationError::Truth(format!(
+                    "the truth has {} rig poses, the log at least {}",
+                    truth.world_from_rig.len(),
+                    frame + 1
+                ))
+            })?;
+            let c = o.camera as usize;
+            errors.push(
+                reprojection_error(
+                    &self.cameras[c],
+                    &truth.rig_from_camera[c],
+                    world_from_rig,
+                    o,
+                )
+                .unwrap_or(f64::NAN),
+            );
+        }
+        Ok(Accuracy {
+            cameras,
+            hand_eye,
+            reprojection_error_at_truth_px: finite_mean(&errors),
+        })
+    }
+}
+
+/// Runs the whole calibration with the default progress (none) and a vocabulary trained on
+/// the map: [`calibrate_with`] with `None` and [`NoProgress`].
+///
+/// # Errors
+/// As [`calibrate_with`].
+pub fn calibrate<D: Descriptor>(
+    map: &Map<D>,
+    log: &RigLog<D>,
+    rig: &Rig,
+    options: &CalibrationOptions,
+) -> Result<Calibration, CalibrationError> {
+    calibrate_with(map, log, rig, options, None, &NoProgress)
+}
+
+/// Checks the inputs' sizes before any work.
+fn check_inputs<D>(map: &Map<D>, log: &RigLog<D>, rig: &Rig) -> Result<(), CalibrationError> {
+    let k = rig.cameras.len();
+    if log.camera_names.len() != k {
+        return Err(CalibrationError::CameraCountMismatch {
+            cameras: k,
+            log_cameras: log.camera_names.len(),
+        });
+    }
+    if k < 2 {
+        return Err(CalibrationError::TooFewCameras { cameras: k });
+    }
+    if log.frames.is_empty() {
+        return Err(CalibrationError::EmptyLog);
+    }
+    if map.points.is_empty() {
+        return Err(CalibrationError::EmptyMap {
+            what: "no map point",
+        });
+    }
+    for (i, image) in map.images.iter().enumerate() {
+        let f = &image.features;
+        if f.keypoints.len() != f.descriptors.len() || image.point_ids.len() != f.len() {
+            return Err(CalibrationError::InvalidInput(format!(
+                "map image {i} has {} keypoints, {} descriptors and {} point ids",
+                f.keypoints.len(),
+                f.descriptors.len(),
+                image.point_ids.len()
+            )));
+        }
+    }
+    for (i, frame) in log.frames.iter().enumerate() {
+        if frame.images.len() != k {
+            return Err(CalibrationError::InvalidInput(format!(
+                "frame {i} of the log has {} images for {k} cameras",
+                frame.images.len()
+            )));
+        }
+        if let Some(c) = frame
+            .images
+            .iter()
+            .position(|f| f.keypoints.len() != f.descriptors.len())
+        {
+            return Err(CalibrationError::InvalidInput(format!(
+                "frame {i}, camera {c}: keypoints and descriptors differ in number"
+            )));
+        }
+    }
+    Ok(())
+}
+
+/// The refinement's observations: for every frame set and localized camera, at most
+/// `per_image` of its inliers, evenly spaced.
+fn observations<D>(
+    sets: &[FrameSet],
+    localizations: &Localizations,
+    map: &Map<D>,
+    log: &RigLog<D>,
+    per_image: usize,
+) -> Vec<RigObservation> {
+    let mut out = Vec::new();
+    for (s, set) in sets.iter().enumerate() {
+        for c in 0..set.camera_from_world.len() {
+            let Some(image) = localizations.get(set.frame, c) else {
+                continue;
+            };
+            let keypoints = &log.frames[set.frame].images[c].keypoints;
+            for i in evenly_spaced(image.inliers.len(), per_image) {
+                let corr = image.inliers[i];
+                if let (Some(point), Some(pixel)) = (
+                    map.points.get(corr.point as usize),
+                    keypoints.get(corr.feature as usize),
+                ) {
+                    out.push(RigObservation {
+                        set: s as u32,
+                        camera: c as u32,
+                        point: *point,
+                        pixel: *pixel,
+                    });
+                }
+            }
+        }
+    }
+    out
+}
+
+/// The reprojection error of every observation under the given estimate.
+fn errors(
+    cameras: &[Camera],
+    rig_from_camera: &[Isometry3<f64>],
+    world_from_rig: &[Isometry3<f64>],
+    observations: &[RigObservation],
+) -> Vec<f64> {
+    use rayon::prelude::*;
+    observations
+        .par_iter()
+        .map(|o| {
+            let c = o.camera as usize;
+            reprojection_error(
+                &cameras[c],
+                &rig_from_camera[c],
+                &world_from_rig[o.set as usize],
+                o,
+            )
+            .unwrap_or(f64::NAN)
+        })
+        .collect()
+}
+
+/// Runs the whole calibration: the map index (the given vocabulary, or one trained on the
+/// map), localization, frame sets, initialization, refinement and, when the log has odometry
+/// and the options ask for it, hand-eye calibration. The cameras of `rig` are matched to the
+/// log's by order; their intrinsics are used as they are, their extrinsics only reported as
+/// the prior configuration.
+///
+/// # Errors
+/// [`CalibrationError::InvalidOption`], [`CalibrationError::CameraCountMismatch`],
+/// [`CalibrationError::TooFewCameras`], [`CalibrationError::EmptyLog`],
+/// [`CalibrationError::EmptyMap`], [`CalibrationError::InvalidInput`] for bad input;
+/// [`CalibrationError::Vocabulary`]; [`CalibrationError::NothingLocalized`] and
+/// [`CalibrationError::NoCompleteFrameSet`] when the log does not fit the map;
+/// [`CalibrationError::Initialization`] and [`CalibrationError::Refinement`] when a solver
+/// fails. A failed hand-eye calibration is not an error: it is reported in
+/// [`Calibration::hand_eye`].
+pub fn calibrate_with<D: Descriptor>(
+    map: &Map<D>,
+    log: &RigLog<D>,
+    rig: &Rig,
+    options: &CalibrationOptions,
+    vocabulary: Option<Arc<Vocabulary<D>>>,
+    progress: &dyn Progress,
+) -> Result<Calibration, CalibrationError> {
+    let start = Instant::now();
+    options.validate()?;
+    check_inputs(map, log, rig)?;
+    let cameras: Vec<Camera> = rig.cameras.iter().map(|c| c.camera.clone()).collect();
+    let mut timing = Timing::default();
+
+    progress.start(Stage::Vocabulary, 0);
+    let t = Instant::now();
+    let index = match vocabulary {
+        Some(v) => MapIndex::build(map, v, options.vocabulary.direct_index_levels)?,
+        None => MapIndex::train(map, &options.vocabulary)?,
+    };
+    timing.vocabulary = t.elapsed().as_secs_f64();
+    progress.finish(Stage::Vocabulary);
+
+    progress.start(
+        Stage::Localization,
+        (log.frames.len() * cameras.len()) as u64,
+    );
+    let t = Instant::now();
+    let localizations = localize_log(&index, map, &cameras, log, &options.localization, progress)?;
+    drop(index);
+    timing.localization = t.elapsed().as_secs_f64();
+    progress.finish(Stage::Localization);
+    let (localized, images) = (localizations.localized_count(), localizations.image_count());
+    if localized == 0 {
+        return Err(CalibrationError::NothingLocalized { images });
+    }
+
+    progress.start(Stage::Initialization, 0);
+    let t = Instant::now();
+    let frame_sets = select_frame_sets(&localizations, &options.frame_sets);
+    if frame_sets.is_empty() {
+        return Err(CalibrationError::NoCompleteFrameSet {
+            reason: format!(
+                "no frame has {} or more localized cameras",
+                options.frame_sets.min_cameras
+            ),
+            localized,
+            images,
+        });
+    }
+    let initialization = initialize(
+        &frame_sets,
+        &localizations,
+        map,
+        log,
+        &cameras,
+        &options.initialization,
+    )?;
+    timing.initialization = t.elapsed().as_secs_f64();
+    progress.finish(Stage::Initialization);
+
+    progress.start(Stage::Refinement, 0);
+    let t = Instant::now();
+    let observations = observations(
+        &frame_sets,
+        &localizations,
+        map,
+        log,
+        options.refinement.max_observations_per_image,
+    );
+    let refinement = refine(
+        &cameras,
+        &initialization.rig_from_camera,
+        &initialization.world_from_rig,
+        &observations,
+        &options.refinement,
+    )?;
+    let initial_errors_px = errors(
+        &cameras,
+        &initialization.rig_from_camera,
+        &initialization.world_from_rig,
+        &observations,
+    );
+    let final_errors_px = errors(
+        &cameras,
+        &refinement.rig_from_camera,
+        &refinement.world_from_rig,
+        &observations,
+    );
+    timing.refinement = t.elapsed().as_secs_f64();
+    progress.finish(Stage::Refinement);
+
+    let t = Instant::now();
+    let hand_eye_solver = choose_solver(options.hand_eye.method, log.odometry);
+    let hand_eye = hand_eye_solver.map(|solver| {
+        progress.start(Stage::HandEye, 0);
+        let poses: Vec<(Isometry3<f64>, Isometry3<f64>)> = frame_sets
+            .iter()
+            .zip(&refinement.world_from_rig)
+            .filter_map(|(set, rig)| Some((*rig, log.frames[set.frame].world_from_odometry?)))
+            .collect();
+        let result = calibrate_hand_eye(solver, &poses, &options.hand_eye);
+        progress.finish(Stage::HandEye);
+        result
+    });
+    timing.hand_eye = t.elapsed().as_secs_f64();
+    timing.total = start.elapsed().as_secs_f64();
+
+    Ok(Calibration {
+        camera_names: log.camera_names.clone(),
+        cameras,
+        prior_rig_from_camera: rig.cameras.iter().map(|c| c.rig_from_camera).collect(),
+        rig_from_camera: refinement.rig_from_camera.clone(),
+        odometry: log.odometry,
+        localizations,
+        frame_sets,
+        initialization,
+        refinement,
+        observations,
+        initial_errors_px,
+        final_errors_px,
+        hand_eye_solver,
+        hand_eye,
+        timing,
+    })
+}

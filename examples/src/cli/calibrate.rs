@@ -1,0 +1,133 @@
+//! `ibc calibrate`: the pipeline on a user's files.
+
+use std::path::Path;
+use std::sync::Arc;
+
+use ibc_camera_models::Rig;
+use ibc_pipeline::calib::{Calibration, CalibrationOptions, calibrate_with};
+use ibc_pipeline::data::GroundTruth;
+use ibc_pipeline::data::io::{
+    DescriptorLayout, FileDescriptor, read_descriptor_layout, read_log, read_map, read_truth,
+};
+use ibc_pipeline::report::{Report, text_table, write_outputs};
+use ibc_vocab_tree::{Descriptor, DescriptorKind, Vocabulary};
+
+use super::progress::Bars;
+use super::{CalibrateArgs, CliError, print};
+
+/// Reads the camera file: a CamOdoCal folder (or its `extrinsic.txt`), else a Kalibr camchain.
+fn read_cameras(path: &Path) -> Result<Rig, CliError> {
+    let error = |e: ibc_camera_models::FileError| CliError::Cameras {
+        path: path.to_owned(),
+        message: e.to_string(),
+    };
+    if path.is_dir() {
+        Rig::read_camodocal_dir(path).map_err(error)
+    } else if path.file_name().is_some_and(|n| n == "extrinsic.txt") {
+        Rig::read_camodocal_dir(path.parent().unwrap_or(Path::new("."))).map_err(error)
+    } else {
+        let rig = Rig::read_kalibr(path).map_err(error)?;
+        if rig.cameras.is_empty() {
+            return Err(CliError::Cameras {
+                path: path.to_owned(),
+                message: "no camera (`cam0`, `cam1`, ...) in the file".to_owned(),
+            });
+        }
+        Ok(rig)
+    }
+}
+
+/// Builds the report, writes the output files when `out` is given, and prints the table (or
+/// the JSON report).
+pub fn finish(
+    calibration: &Calibration,
+    truth: Option<&GroundTruth>,
+    prior: Option<&Rig>,
+    out: Option<&Path>,
+    json: bool,
+) -> Result<(), CliError> {
+    let report = Report::new(calibration, truth)?;
+    if let Some(dir) = out {
+        write_outputs(dir, calibration, &report, prior)?;
+    }
+    if json {
+        print(&(report.to_json() + "\n"))
+    } else {
+        print(&text_table(&report))
+    }
+}
+
+/// The calibration with descriptors of type `D`.
+fn calibrate_files<D: Descriptor + FileDescriptor>(
+    args: &CalibrateArgs,
+    bars: &Bars,
+) -> Result<(), CliError> {
+    let rig = read_cameras(&args.cameras)?;
+    let truth = args
+        .truth
+        .as_ref()
+        .map(|p| {
+            read_truth(p).map_err(|source| CliError::Data {
+                what: "ground truth",
+                source,
+            })
+        })
+        .transpose()?;
+    bars.step("reading the map");
+    let map = read_map::<D>(&args.map).map_err(|source| CliError::Data {
+        what: "map",
+        source,
+    });
+    bars.done();
+    let map = map?;
+    bars.step("reading the log");
+    let log = read_log::<D>(&args.log).map_err(|source| CliError::Data {
+        what: "rig log",
+        source,
+    });
+    bars.done();
+    let log = log?;
+    let vocabulary = args
+        .vocabulary
+        .as_ref()
+        .map(|p| {
+            Vocabulary::<D>::load(p).map(Arc::new).map_err(|e| {
+                CliError::Calibration(ibc_pipeline::calib::CalibrationError::Vocabulary(e))
+            })
+        })
+        .transpose()?;
+    let calibration = calibrate_with(
+        &map,
+        &log,
+        &rig,
+        &CalibrationOptions::default(),
+        vocabulary,
+        bars,
+    )?;
+    finish(
+        &calibration,
+        truth.as_ref(),
+        Some(&rig),
+        Some(&args.out),
+        args.json,
+    )
+}
+
+/// Runs `ibc calibrate`.
+pub fn run(args: &CalibrateArgs) -> Result<(), CliError> {
+    let bars = Bars::new(args.quiet);
+    let data = |what| move |source| CliError::Data { what, source };
+    let map = read_descriptor_layout(&args.map).map_err(data("map"))?;
+    let log = read_descriptor_layout(&args.log).map_err(data("rig log"))?;
+    if map != log {
+        return Err(CliError::DescriptorMismatch { map, log });
+    }
+    match (map.kind, map.width) {
+        (DescriptorKind::Binary, 4) => calibrate_files::<[u64; 4]>(args, &bars),
+        (DescriptorKind::Binary, 8) => calibrate_files::<[u64; 8]>(args, &bars),
+        (DescriptorKind::Float, 32) => calibrate_files::<[f32; 32]>(args, &bars),
+        (DescriptorKind::Float, 64) => calibrate_files::<[f32; 64]>(args, &bars),
+        (DescriptorKind::Float, 128) => calibrate_files::<[f32; 128]>(args, &bars),
+        _ => Err(CliError::UnsupportedDescriptor(DescriptorLayout { ..map })),
+    }
+}

@@ -1,0 +1,34 @@
+//! `ibc demo`: a scenario simulated in memory, calibrated and reported.
+
+use ibc_pipeline::calib::{CalibrationOptions, calibrate_with};
+use ibc_pipeline::sim::{Scenario, SimulatedWorld};
+
+use super::progress::Bars;
+use super::{CliError, DemoArgs, calibrate::finish};
+
+/// Runs `ibc demo`.
+pub fn run(args: &DemoArgs) -> Result<(), CliError> {
+    let bars = Bars::new(args.quiet);
+    let mut scenario = Scenario::resolve(&args.scenario)?;
+    if let Some(seed) = args.seed {
+        scenario = scenario.with_seed(seed);
+    }
+    bars.step("simulating");
+    let world = SimulatedWorld::simulate(&scenario)?;
+    bars.done();
+    let calibration = calibrate_with(
+        &world.map,
+        &world.log,
+        &world.map_rig,
+        &CalibrationOptions::default(),
+        None,
+        &bars,
+    )?;
+    finish(
+        &calibration,
+        Some(&world.truth),
+        Some(&world.map_rig),
+        args.out.as_deref(),
+        args.json,
+    )
+}

@@ -1,0 +1,90 @@
+//! The command line's errors: one line that names the problem and a likely cause.
+
+use std::path::PathBuf;
+
+use ibc_pipeline::calib::CalibrationError;
+use ibc_pipeline::data::io::{DataFileError, DescriptorLayout};
+use ibc_pipeline::intrinsics::IntrinsicsError;
+use ibc_pipeline::report::OutputError;
+use ibc_pipeline::sim::SimError;
+
+/// Why a command failed.
+#[derive(Debug, thiserror::Error)]
+pub enum CliError {
+    /// A scenario could not be resolved, simulated or written.
+    #[error("{0}")]
+    Simulation(#[from] SimError),
+    /// A map, log or ground-truth file could not be read.
+    #[error("{what}: {source}{}", hint(source))]
+    Data {
+        /// Which input (`map`, `rig log`, `ground truth`).
+        what: &'static str,
+        /// The reader's error, naming the file.
+        source: DataFileError,
+    },
+    /// The camera file could not be read.
+    #[error(
+        "camera file {}: {message} (expected a Kalibr camchain YAML, or a CamOdoCal folder \
+         with extrinsic.txt and <name>_camera_calib.yaml files)",
+        path.display()
+    )]
+    Cameras {
+        /// The file or folder given.
+        path: PathBuf,
+        /// The reader's message.
+        message: String,
+    },
+    /// The map and the log hold different kinds of descriptors.
+    #[error(
+        "the map holds {map} descriptors but the rig log holds {log}: were they extracted \
+         with different feature detectors?"
+    )]
+    DescriptorMismatch {
+        /// The map's layout.
+        map: DescriptorLayout,
+        /// The log's layout.
+        log: DescriptorLayout,
+    },
+    /// The descriptors are of a kind this build does not calibrate with.
+    #[error(
+        "{0} descriptors are not supported (binary 256 or 512 bits, float 32, 64 or 128 \
+         values are)"
+    )]
+    UnsupportedDescriptor(DescriptorLayout),
+    /// The calibration failed.
+    #[error("calibration failed: {0}")]
+    Calibration(#[from] CalibrationError),
+    /// The output files could not be written.
+    #[error("{0}")]
+    Output(#[from] OutputError),
+    /// The intrinsic calibration failed (its error names the input or the views at fault).
+    #[error("{0}")]
+    Intrinsics(#[from] IntrinsicsError),
+    /// Standard output could not be written.
+    #[error("cannot write to standard output: {0}")]
+    Stdout(std::io::Error),
+}
+
+/// A likely cause of a data-file error the reader's message does not already give.
+fn hint(error: &DataFileError) -> &'static str {
+    match error {
+        DataFileError::Io { source, .. } if source.kind() == std::io::ErrorKind::NotFound => {
+            " (is the path right? `ibc simulate` writes map.ibcmap, log.ibclog, camchain.yaml \
+             and truth.json)"
+        }
+        DataFileError::Io { source, .. } if source.kind() == std::io::ErrorKind::IsADirectory => {
+            " (a folder was given where a file is expected)"
+        }
+        DataFileError::Io { source, .. } if source.kind() == std::io::ErrorKind::InvalidData => {
+            " (the file is not text: was another file given?)"
+        }
+        _ => "",
+    }
+}
+
+impl CliError {
+    /// The message on one line.
+    pub fn one_line(&self) -> String {
+        self.to_string().replace(['\n', '\r'], " ")
+    }
+}

@@ -1,0 +1,121 @@
+//! The ground truth of a simulated world as JSON (`truth.json`). The schema is documented in
+//! the [`io`](super) module.
+
+use nalgebra::Isometry3;
+use serde::{Deserialize, Serialize};
+
+use super::bytes::{pose_from_array, pose_to_array};
+use crate::data::GroundTruth;
+
+/// The `format` value of a ground-truth file.
+pub const TRUTH_FORMAT: &str = "ibc-ground-truth";
+
+/// A pose as JSON: translation in metres and a unit quaternion `[w, x, y, z]`.
+#[derive(Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct JsonPose {
+    translation: [f64; 3],
+    rotation_wxyz: [f64; 4],
+}
+
+impl From<&Isometry3<f64>> for JsonPose {
+    fn from(p: &Isometry3<f64>) -> Self {
+        let [tx, ty, tz, qw, qx, qy, qz] = pose_to_array(p);
+        Self {
+            translation: [tx, ty, tz],
+            rotation_wxyz: [qw, qx, qy, qz],
+        }
+    }
+}
+
+impl JsonPose {
+    fn to_pose<E: serde::de::Error>(&self, what: &str) -> Result<Isometry3<f64>, E> {
+        let [tx, ty, tz] = self.translation;
+        let [qw, qx, qy, qz] = self.rotation_wxyz;
+        pose_from_array([tx, ty, tz, qw, qx, qy, qz])
+            .map_err(|why| E::custom(format!("{what}: {why}")))
+    }
+}
+
+#[derive(Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct JsonTruth {
+    format: String,
+    version: u32,
+    scenario: String,
+    seed: u64,
+    pixel_noise_px: f64,
+    rig_from_camera: Vec<JsonPose>,
+    rig_from_odometry: Option<JsonPose>,
+    world_from_rig: Vec<JsonPose>,
+}
+
+/// The ground truth as pretty-printed JSON.
+///
+/// # Errors
+/// A serde error if a number is not finite (JSON has no NaN).
+pub fn truth_to_json(truth: &GroundTruth) -> Result<String, serde_json::Error> {
+    let j = JsonTruth {
+        format: TRUTH_FORMAT.to_owned(),
+        version: super::FORMAT_VERSION,
+        scenario: truth.scenario.clone(),
+        seed: truth.seed,
+        pixel_noise_px: truth.pixel_noise_px,
+        rig_from_camera: truth.rig_from_camera.iter().map(JsonPose::from).collect(),
+        rig_from_odometry: truth.rig_from_odometry.as_ref().map(JsonPose::from),
+        world_from_rig: truth.world_from_rig.iter().map(JsonPose::from).collect(),
+    };
+    if !truth.pixel_noise_px.is_finite() {
+        return Err(serde::ser::Error::custom("pixel_noise_px is not finite"));
+    }
+    let mut s = serde_json::to_string_pretty(&j)?;
+    s.push('\n');
+    Ok(s)
+}
+
+/// Parses and validates ground-truth JSON: the `format` and `version`, unit quaternions
+/// (within 1e-6, normalized), finite numbers, a non-negative pixel noise.
+///
+/// # Errors
+/// A serde error with line and column for malformed JSON, a missing or unknown field, or an
+/// invalid value.
+pub fn truth_from_json(text: &str) -> Result<GroundTruth, serde_json::Error> {
+    use serde::de::Error;
+    let j: JsonTruth = serde_json::from_str(text)?;
+    if j.format != TRUTH_FORMAT {
+        return Err(Error::custom(format!(
+            "`format` is {:?}, not {TRUTH_FORMAT:?}",
+            j.format
+        )));
+    }
+    if j.version != super::FORMAT_VERSION {
+        return Err(Error::custom(format!(
+            "version {} is not supported (this build reads version {})",
+            j.version,
+            super::FORMAT_VERSION
+        )));
+    }
+    if !(j.pixel_noise_px.is_finite() && j.pixel_noise_px >= 0.0) {
+        return Err(Error::custom(
+            "pixel_noise_px must be finite and non-negative",
+        ));
+    }
+    let poses = |v: &[JsonPose], what: &str| -> Result<Vec<Isometry3<f64>>, serde_json::Error> {
+        v.iter()
+            .enumerate()
+            .map(|(i, p)| p.to_pose(&format!("{what}[{i}]")))
+            .collect()
+    };
+    Ok(GroundTruth {
+        scenario: j.scenario,
+        seed: j.seed,
+        rig_from_camera: poses(&j.rig_from_camera, "rig_from_camera")?,
+        world_from_rig: poses(&j.world_from_rig, "world_from_rig")?,
+        rig_from_odometry: j
+            .rig_from_odometry
+            .as_ref()
+            .map(|p| p.to_pose("rig_from_odometry"))
+            .transpose()?,
+        pixel_noise_px: j.pixel_noise_px,
+    })
+}

@@ -1,0 +1,116 @@
+//! Intrinsic calibration of one camera from the corners of a planar target (issue 9): the
+//! Kannala-Brandt method of Heng et al. (ICRA 2014, section III) and pinhole-radtan from
+//! Zhang's closed form, both refined jointly with every board pose.
+//!
+//! # Method
+//! - **Kannala-Brandt** ([`kb_init`]): start from the equidistant camera `k1..k4 = 0`,
+//!   `mu = mv = f`, `(u0, v0) = (w / 2, h / 2)`; in every image fit a circle through the
+//!   corners of each board row ([`circle_fit`], Pratt's fit), intersect the circles in the two
+//!   vanishing points `v1, v2` and take `f = |v1 - v2| / pi` ([`vanishing_points`], Hughes et
+//!   al., TPAMI 2010). Each image gives a hypothesis (here also one from its columns); each is
+//!   scored by the reprojection error after EPnP on the bearing vectors of every image, and
+//!   the best is kept.
+//! - **Pinhole-radtan** ([`pinhole_init`]): the corners straightened by a one-parameter
+//!   division model ([`division_model`], Fitzgibbon, CVPR 2001), a homography per image
+//!   ([`homography`]), Zhang's closed form for `fx, fy, cx, cy` and his linear `k1, k2`
+//!   ([`zhang`], TPAMI 2000), alternated; `p1 = p2 = 0`.
+//! - **Refinement** (both): Levenberg-Marquardt over the 8 intrinsics and every
+//!   `camera_from_board` with `ibc-bundle-adjust` (poses eliminated by the Schur complement)
+//!   and the analytic intrinsic Jacobians of `ibc-camera-models`. The parameter covariance is
+//!   the inverse Schur complement scaled by the a-posteriori noise variance
+//!   `sum r^2 / (m - n)`.
+//! - **Unified (Mei)**: left out. Its published initializations (Mei and Rives, ICRA 2007:
+//!   `xi = 1`, a generalized focal length from a line image, then a per-image homography) need
+//!   either a user-picked line or `xi` fixed at 1, and `xi` is strongly correlated with the
+//!   focal length so the refinement from that start was not validated here;
+//!   [`IntrinsicModel`]'s parser refuses `mei` with a message saying so. Fisheyes are
+//!   calibrated with `kb`.
+//!
+//! Bad input is a typed [`IntrinsicsError`]: too few images ([`MIN_IMAGES`]) or corners
+//! ([`MIN_CORNERS_PER_IMAGE`]), a corner outside the image or off the board, boards that are
+//! all parallel to each other (for instance all parallel to the image:
+//! [`IntrinsicsError::DegenerateViews`], detected by the spread of the board normals,
+//! [`MIN_NORMAL_SPREAD_DEG`], and for the pinhole also by the conditioning of Zhang's
+//! constraints, [`zhang::ZHANG_MIN_CONDITION`]).
+//!
+//! # Corner file format (JSON)
+//! Any detector's output (OpenCV's `findChessboardCorners` + `cornerSubPix`, Kalibr's
+//! AprilGrid, ...) can be fed in as one JSON file per camera:
+//!
+//! ```json
+//! {
+//!   "format": "ibc-corners",
+//!   "version": 1,
+//!   "image_width": 1280,
+//!   "image_height": 960,
+//!   "board": {"rows": 6, "cols": 9, "square": 0.04},
+//!   "images": [
+//!     {"name": "img_0001.png", "corners": [
+//!       {"row": 0, "col": 0, "u": 412.37, "v": 300.12},
+//!       {"row": 0, "col": 1, "u": 440.91, "v": 298.50}
+//!     ]}
+//!   ]
+//! }
+//! ```
+//!
+//! - `format` must be `"ibc-corners"` and `version` 1 ([`CORNER_FORMAT`],
+//!   [`CORNER_FORMAT_VERSION`]); unknown fields are refused.
+//! - `board` is optional (`rows` x `cols` inner corners, `square` metres apart); without it
+//!   give `--board ROWSxCOLS --square M`. Board corner `(row, col)` is at
+//!   `(col * square, row * square, 0)` in the board frame ([`PlanarTarget`]); indices start
+//!   at 0.
+//! - Each image lists its detected corners in any order, each `(row, col)` at most once;
+//!   missing corners are simply absent. `u, v` are pixels with pixel centres at integer
+//!   coordinates (OpenCV's convention; add 0.5 to neither), inside
+//!   `[-0.5, width - 0.5] x [-0.5, height - 0.5]`.
+//!
+//! # Command line
+//! `ibc intrinsics --corners FILE --model kb|pinhole [--board ROWSxCOLS --square M] --out DIR
+//! [--json]`, or `ibc intrinsics --simulate [--model kb|pinhole] [--views N] [--noise PX]
+//! [--missing FRACTION] [--seed N] [--true-camera FILE] --out DIR` ([`command`]). Outputs
+//! ([`output`]), written all or nothing: `<name>_camera_calib.yaml` (CamOdoCal),
+//! `camchain.yaml` (Kalibr), `intrinsics_report.json` (parameters with standard deviations,
+//! RMS and per-image errors, the initialization; [`report`]) and `residuals.svg` ([`svg`]);
+//! simulated mode adds `corners.json` and `truth_camera_calib.yaml`.
+//!
+//! ```
+//! use ibc_pipeline::intrinsics::simulate::{BoardSimulationOptions, preset_camera, simulate_boards};
+//! use ibc_pipeline::intrinsics::{IntrinsicModel, IntrinsicsOptions, PlanarTarget, calibrate_intrinsics};
+//!
+//! let model = IntrinsicModel::KannalaBrandt;
+//! let truth = preset_camera(model)?; // a 190-degree fisheye
+//! let target = PlanarTarget::new(6, 9, 0.04)?;
+//! let sim = simulate_boards(&truth, &target, &BoardSimulationOptions::for_model(model))?;
+//! let cal = calibrate_intrinsics(&sim.corners, &target, model, &IntrinsicsOptions::default())?;
+//! assert!(cal.rms_px < 0.25); // 0.2 px noise per coordinate
+//! # Ok::<(), ibc_pipeline::intrinsics::IntrinsicsError>(())
+//! ```
+
+mod board_pose;
+mod calibrate;
+pub mod circle_fit;
+pub mod command;
+mod corners;
+pub mod division_model;
+mod error;
+pub mod homography;
+pub mod kb_init;
+pub mod output;
+pub mod pinhole_init;
+mod refine;
+pub mod report;
+pub mod simulate;
+pub mod svg;
+mod target;
+pub mod vanishing_points;
+pub mod zhang;
+
+pub use calibrate::{
+    ImageError, Initialization, IntrinsicCalibration, IntrinsicModel, IntrinsicsOptions,
+    MIN_CORNERS_PER_IMAGE, MIN_IMAGES, MIN_NORMAL_SPREAD_DEG, calibrate_intrinsics,
+    normal_spread_deg,
+};
+pub use corners::{CORNER_FORMAT, CORNER_FORMAT_VERSION, Corner, CornerSet, ImageCorners};
+pub use error::IntrinsicsError;
+pub use kb_init::MIN_LINE_CORNERS;
+pub use target::PlanarTarget;

@@ -1,0 +1,232 @@
+//! The joint refinement of the intrinsics and every board pose: Levenberg-Marquardt on the
+//! reprojection error with `ibc-bundle-adjust`, poses eliminated by the Schur complement.
+//!
+//! The residual of corner `k` of image `i` is `pi(params, T_i X_k) - x_ik` (pixels), with `pi`
+//! the camera model, `T_i = camera_from_board` on SE(3) (right perturbation
+//! `T Exp(delta)`, `delta = [rho, phi]`, as [`ibc_bundle_adjust::Se3Manifold`]) and `X_k` the
+//! board corner. Its Jacobians are analytic: `d pixel / d params` from the camera model, and
+//! `d pixel / d point * R [I, -[X]x]` for the pose. One residual block per image holds all
+//! its corners, so the camera is built once per image and evaluation.
+//!
+//! The covariance of the intrinsics is the solver's ([`Problem::covariance`]: the inverse of
+//! the Schur complement of `J^T J` with the poses eliminated, Triggs et al. 2000), scaled by
+//! the a-posteriori variance factor `sum r^2 / (m - n)` (`m` residual coordinates,
+//! `n = 8 + 6 * images` unknowns): the estimated pixel noise variance.
+
+use ibc_bundle_adjust::manifold::{se3_from_params, se3_to_params, skew};
+use ibc_bundle_adjust::{
+    CostFunction, Jacobians, Loss, Problem, Se3Manifold, SolverOptions, Summary,
+};
+use ibc_camera_models::{Camera, CameraModel};
+use nalgebra::{Isometry3, Matrix2x6, Matrix3x6, Point3, SMatrix, Vector2};
+
+use ibc_bundle_adjust::BundleAdjustError;
+
+use super::board_pose::ImageCorrespondences;
+use super::calibrate::IntrinsicModel;
+use super::error::IntrinsicsError;
+
+/// 2 x 8: d pixel / d intrinsics.
+pub(crate) type IntrinsicJacobian = SMatrix<f64, 2, 8>;
+
+/// The residual and Jacobians of one corner.
+pub(crate) struct CornerTerms {
+    /// Predicted minus observed pixel.
+    pub residual: Vector2<f64>,
+    /// d residual / d intrinsics.
+    pub d_intrinsics: IntrinsicJacobian,
+    /// d residual / d pose tangent `[rho, phi]`.
+    pub d_pose: Matrix2x6<f64>,
+}
+
+/// The residual and Jacobians of a corner, or `None` where the point does not project.
+pub(crate) fn corner_terms(
+    camera: &Camera,
+    camera_from_board: &Isometry3<f64>,
+    point: &Point3<f64>,
+    observed: &Vector2<f64>,
+) -> Option<CornerTerms> {
+    let p = camera_from_board * point;
+    let j = camera.project_with_jacobians(&p.coords).ok()?;
+    let r = camera_from_board.rotation.to_rotation_matrix().into_inner();
+    let mut d_point_d_delta = Matrix3x6::zeros();
+    d_point_d_delta.fixed_view_mut::<3, 3>(0, 0).copy_from(&r);
+    d_point_d_delta
+        .fixed_view_mut::<3, 3>(0, 3)
+        .copy_from(&(-r * skew(&point.coords)));
+    Some(CornerTerms {
+        residual: j.pixel - observed,
+        d_intrinsics: j.d_pixel_d_params.fixed_columns::<8>(0).into_owned(),
+        d_pose: j.d_pixel_d_point * d_point_d_delta,
+    })
+}
+
+/// The reprojection residuals of one image: blocks `[intrinsics (8), camera_from_board (7)]`.
+pub(crate) struct ImageReprojection {
+    pub model: IntrinsicModel,
+    pub width: u32,
+    pub height: u32,
+    pub points: Vec<Point3<f64>>,
+    pub observed: Vec<Vector2<f64>>,
+}
+
+const BLOCK_SIZES: [usize; 2] = [8, 7];
+
+impl CostFunction for ImageReprojection {
+    fn num_residuals(&self) -> usize {
+        2 * self.points.len()
+    }
+
+    fn parameter_block_sizes(&self) -> &[usize] {
+        &BLOCK_SIZES
+    }
+
+    fn evaluate(
+        &self,
+        parameters: &[&[f64]],
+        residuals: &mut [f64],
+        jacobians: Option<&mut Jacobians<'_>>,
+    ) -> bool {
+        let (Some(params), Some(pose)) = (parameters.first(), parameters.get(1)) else {
+            return false;
+        };
+        let Ok(camera) = self.model.camera(self.width, self.height, params) else {
+            return false;
+        };
+        let pose = se3_from_params(pose);
+        let Some(jacobians) = jacobians else {
+            for (k, (x, obs)) in self.points.iter().zip(&self.observed).enumerate() {
+                let Ok(pixel) = camera.project(&(pose * x).coords) else {
+                    return false;
+                };
+                residuals[2 * k] = pixel.x - obs.x;
+                residuals[2 * k + 1] = pixel.y - obs.y;
+            }
+            return true;
+        };
+        let mut terms = Vec::with_capacity(self.points.len());
+        for (k, (x, obs)) in self.points.iter().zip(&self.observed).enumerate() {
+            let Some(t) = corner_terms(&camera, &pose, x, obs) else {
+                return false;
+            };
+            residuals[2 * k] = t.residual.x;
+            residuals[2 * k + 1] = t.residual.y;
+            terms.push(t);
+        }
+        if let Some(block) = jacobians.row_major_mut(0) {
+            for (k, t) in terms.iter().enumerate() {
+                for row in 0..2 {
+                    let dst = &mut block[(2 * k + row) * 8..(2 * k + row + 1) * 8];
+                    for (c, v) in dst.iter_mut().enumerate() {
+                        *v = t.d_intrinsics[(row, c)];
+                    }
+                }
+            }
+        }
+        if let Some(block) = jacobians.row_major_mut(1) {
+            for (k, t) in terms.iter().enumerate() {
+                for row in 0..2 {
+                    let dst = &mut block[(2 * k + row) * 6..(2 * k + row + 1) * 6];
+                    for (c, v) in dst.iter_mut().enumerate() {
+                        *v = t.d_pose[(row, c)];
+                    }
+                }
+            }
+        }
+        true
+    }
+}
+
+/// The outcome of [`refine`].
+pub(crate) struct Refined {
+    pub params: [f64; 8],
+    pub camera_from_board: Vec<Isometry3<f64>>,
+    pub summary: Summary,
+    /// Covariance of the intrinsics (8 x 8, parameter order), scaled by `noise_variance`.
+    pub covariance: SMatrix<f64, 8, 8>,
+    /// `sum r^2 / (m - n)`, pixels squared.
+    pub noise_variance: f64,
+}
+
+/// Refines the intrinsics and all board poses together from an initial guess.
+///
+/// `data[i]` holds image `i`'s board points and observed pixels.
+pub(crate) fn refine(
+    model: IntrinsicModel,
+    width: u32,
+    height: u32,
+    initial: &[f64; 8],
+    initial_poses: &[Isometry3<f64>],
+    data: &[ImageCorrespondences],
+    options: &SolverOptions,
+) -> Result<Refined, IntrinsicsError> {
+    let mut problem = Problem::new();
+    let intrinsics = problem.add_parameter_block(initial)?;
+    let mut poses = Vec::with_capacity(initial_poses.len());
+    for ((points, pixels), pose) in data.iter().zip(initial_poses) {
+        let block = problem.add_manifold_block(&se3_to_params(pose), Se3Manifold)?;
+        problem.set_eliminated(block, true)?;
+        problem.add_residual_block(
+            ImageReprojection {
+                model,
+                width,
+                height,
+                points: points.clone(),
+                observed: pixels.clone(),
+            },
+            Loss::Trivial,
+            &[intrinsics, block],
+        )?;
+        poses.push(block);
+    }
+    let summary = problem.solve(options)?;
+    use ibc_bundle_adjust::Termination as T;
+    match summary.termination {
+        T::EvaluationFailed | T::TooManyInvalidSteps | T::NoFreeParameters => {
+            return Err(IntrinsicsError::Refinement(format!(
+                "Levenberg-Marquardt stopped with `{}` after {} iterations (cost {:.3e} -> {:.3e})",
+                summary.termination, summary.iterations, summary.initial_cost, summary.final_cost
+            )));
+        }
+        _ => {}
+    }
+    let values = problem.parameter_block(intrinsics)?;
+    let mut params = [0.0; 8];
+    params.copy_from_slice(values);
+    let camera_from_board = poses
+        .iter()
+        .map(|&b| Ok(se3_from_params(problem.parameter_block(b)?)))
+        .collect::<Result<Vec<_>, IntrinsicsError>>()?;
+    let m: usize = data.iter().map(|(points, _)| 2 * points.len()).sum();
+    let n = 8 + 6 * data.len();
+    if m <= n {
+        return Err(IntrinsicsError::SingularInformation(format!(
+            "{m} residual coordinates do not exceed the {n} unknowns"
+        )));
+    }
+    let noise_variance = 2.0 * summary.final_cost / (m - n) as f64;
+    let unit = problem
+        .covariance(&[intrinsics], options)
+        .map_err(|e| match e {
+            BundleAdjustError::SingularInformation => IntrinsicsError::SingularInformation(
+                "some intrinsic parameter is not observable from these views".into(),
+            ),
+            other => IntrinsicsError::Solver(other),
+        })?;
+    let matrix = unit.matrix();
+    if matrix.nrows() != 8 || matrix.ncols() != 8 {
+        return Err(IntrinsicsError::SingularInformation(format!(
+            "the solver returned a {}x{} covariance for the 8 intrinsics",
+            matrix.nrows(),
+            matrix.ncols()
+        )));
+    }
+    let covariance = SMatrix::<f64, 8, 8>::from_fn(|r, c| matrix[(r, c)] * noise_variance);
+    Ok(Refined {
+        params,
+        camera_from_board,
+        summary,
+        covariance,
+        noise_variance,
+    })
+}

@@ -1,0 +1,17 @@
+//! Reports of a calibration: the JSON report ([`Report`]), the text table like the paper's
+//! Table I ([`text_table`]), SVG plots ([`top_view_svg`], [`error_histogram_svg`]) and the
+//! output files (Kalibr camchain, CamOdoCal YAMLs and `extrinsic.txt`), written all or
+//! nothing by [`write_outputs`].
+
+mod files;
+mod json;
+mod svg;
+mod table;
+
+pub use files::{OutputError, calibrated_rig, output_names, write_outputs};
+pub use json::{
+    CameraJson, ChangeJson, HandEyeJson, InitializationJson, PoseJson, PoseStdJson, REPORT_FORMAT,
+    REPORT_VERSION, RefinementJson, Report, ReprojectionJson,
+};
+pub use svg::{error_histogram_svg, top_view_svg};
+pub use table::text_table;

@@ -1,0 +1,176 @@
+#![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)]
+//! The `ibc` commands through the binary: `scenarios`, `demo`, and `simulate` then `calibrate`
+//! giving the same result as `demo`.
+
+mod cli_common;
+
+use cli_common::{entries, ibc, json_close, scenario_file, stderr, stdout};
+use ibc_pipeline::report::output_names;
+
+#[test]
+fn scenarios_lists_the_built_in_worlds() {
+    let o = ibc(&["scenarios"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = stdout(&o);
+    for name in [
+        "garage",
+        "street",
+        "garage-moved-cameras",
+        "garden-pentagon",
+        "handheld-6dof",
+    ] {
+        assert!(
+            text.lines().any(|l| l.starts_with(name)),
+            "{name} missing from\n{text}"
+        );
+    }
+    assert!(text.contains("(default)"));
+}
+
+#[test]
+fn simulate_then_calibrate_gives_the_demo_result() {
+    let dir = tempfile::tempdir().unwrap();
+    let scenario = scenario_file(dir.path(), "garage", 0.1);
+    // The demo, with its JSON report on stdout and every output file in `demo`.
+    let demo_dir = dir.path().join("demo");
+    let o = ibc(&[
+        "demo",
+        "--scenario",
+        &scenario,
+        "--seed",
+        "3",
+        "--json",
+        "--quiet",
+        "--out",
+        demo_dir.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        stderr(&o).is_empty(),
+        "stderr is not a terminal: no progress output"
+    );
+    let mut demo: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    // The same world written to files, then calibrated from them.
+    let world = dir.path().join("world");
+    let o = ibc(&[
+        "simulate",
+        "--scenario",
+        &scenario,
+        "--seed",
+        "3",
+        "--out",
+        world.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let mut listed = entries(&world);
+    listed.sort();
+    assert_eq!(
+        listed,
+        ["camchain.yaml", "log.ibclog", "map.ibcmap", "truth.json"]
+    );
+    let out = dir.path().join("out");
+    let path = |name: &str| world.join(name).to_str().unwrap().to_owned();
+    let o = ibc(&[
+        "calibrate",
+        "--map",
+        &path("map.ibcmap"),
+        "--log",
+        &path("log.ibclog"),
+        "--cameras",
+        &path("camchain.yaml"),
+        "--truth",
+        &path("truth.json"),
+        "--out",
+        out.to_str().unwrap(),
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let mut calibrated: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    for report in [&mut demo, &mut calibrated] {
+        report.as_object_mut().unwrap().remove("timing_s").unwrap();
+    }
+    // Equal but for the last bits of the prior extrinsics, which went through the camchain's
+    // chained T_cn_cnm1.
+    json_close(&demo, &calibrated, "report").unwrap();
+    assert_eq!(demo["scenario"], "garage");
+    assert_eq!(demo["seed"], 3);
+    // Every output file, in both folders.
+    for folder in [&demo_dir, &out] {
+        for name in [
+            output_names::REPORT_JSON,
+            output_names::REPORT_TEXT,
+            output_names::CAMCHAIN,
+            output_names::TOP_VIEW,
+            output_names::ERRORS,
+        ] {
+            assert!(
+                folder.join(name).is_file(),
+                "{name} missing in {}",
+                folder.display()
+            );
+        }
+        let camodocal = entries(&folder.join(output_names::CAMODOCAL_DIR));
+        assert_eq!(camodocal.len(), 5, "{camodocal:?}");
+        assert!(camodocal.contains(&"extrinsic.txt".to_owned()));
+    }
+    // The written camchain reads back with the estimated extrinsics.
+    let rig = ibc_camera_models::Rig::read_kalibr(out.join(output_names::CAMCHAIN)).unwrap();
+    let left = &calibrated["cameras"][1]["rig_from_camera"]["translation"];
+    let t = rig.cameras[1].rig_from_camera.translation.vector;
+    assert!((t.x - left[0].as_f64().unwrap()).abs() < 1e-12);
+    // The text table of `calibrate` without --json.
+    let table = std::fs::read_to_string(out.join(output_names::REPORT_TEXT)).unwrap();
+    assert!(table.contains("frame sets") && table.contains("hand-eye (guo-planar"));
+}
+
+#[test]
+fn the_json_report_has_the_keys_the_issue_lists() {
+    let dir = tempfile::tempdir().unwrap();
+    let scenario = scenario_file(dir.path(), "handheld-6dof", 0.1);
+    let o = ibc(&["--scenario", &scenario, "--json"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let r: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    for key in [
+        "scenario",
+        "cameras",
+        "frame_sets_used",
+        "mean_poses_per_set",
+        "correspondences",
+        "reprojection_error_px",
+        "hand_eye",
+        "timing_s",
+    ] {
+        assert!(r.get(key).is_some(), "{key}");
+    }
+    for key in [
+        "name",
+        "rig_from_camera",
+        "rig_from_camera_std",
+        "rotation_error_deg",
+        "translation_error_deg",
+        "translation_error_m",
+    ] {
+        assert!(r["cameras"][1].get(key).is_some(), "cameras[1].{key}");
+    }
+    assert_eq!(
+        r["cameras"][1]["rig_from_camera"]["rotation_wxyz"]
+            .as_array()
+            .unwrap()
+            .len(),
+        4
+    );
+    assert!(r["reprojection_error_px"]["initial"].is_number());
+    assert!(r["reprojection_error_px"]["final"].is_number());
+    assert_eq!(r["hand_eye"]["method"], "daniilidis");
+    assert!(r["hand_eye"]["rig_from_odometry"]["translation"].is_array());
+    assert!(r["hand_eye"]["rotation_error_deg"].is_number());
+    for key in [
+        "localization",
+        "initialization",
+        "refinement",
+        "hand_eye",
+        "total",
+    ] {
+        assert!(r["timing_s"][key].is_number(), "timing_s.{key}");
+    }
+}

@@ -1,0 +1,127 @@
+//! Bad input to `calibrate_intrinsics` gives typed errors, never a wrong calibration or a
+//! panic: degenerate views, too few images or corners, corners outside the image or off the
+//! board, malformed corner files, an unsupported model.
+
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
+mod intrinsics_common;
+
+use ibc_pipeline::intrinsics::simulate::BoardSimulationOptions;
+use ibc_pipeline::intrinsics::{
+    CornerSet, IntrinsicModel, IntrinsicsError, IntrinsicsOptions, MIN_CORNERS_PER_IMAGE,
+    MIN_IMAGES, calibrate_intrinsics, normal_spread_deg,
+};
+use intrinsics_common::{simulated, simulated_with};
+
+const MODELS: [IntrinsicModel; 2] = [IntrinsicModel::KannalaBrandt, IntrinsicModel::PinholeRadtan];
+
+fn run(corners: &CornerSet, model: IntrinsicModel) -> Result<(), IntrinsicsError> {
+    let target = corners.board.unwrap();
+    calibrate_intrinsics(corners, &target, model, &IntrinsicsOptions::default()).map(|_| ())
+}
+
+#[test]
+fn boards_all_parallel_to_the_image_are_degenerate() {
+    for model in MODELS {
+        for (rows, cols) in [(6, 9), (20, 20)] {
+            let mut options = BoardSimulationOptions::for_model(model);
+            options.parallel_to_image = true;
+            options.seed = 3;
+            let sim = simulated_with(model, rows, cols, &options);
+            // The simulator really did place them parallel.
+            assert!(normal_spread_deg(&sim.camera_from_board) < 1e-9);
+            let err = run(&sim.corners, model).unwrap_err();
+            assert!(
+                matches!(err, IntrinsicsError::DegenerateViews { .. }),
+                "{model:?} {rows}x{cols}: {err}"
+            );
+            assert!(err.to_string().contains("parallel"), "{err}");
+        }
+    }
+}
+
+#[test]
+fn too_few_images_or_corners() {
+    for model in MODELS {
+        let sim = simulated(model, 6, 9, 1);
+        let mut few = sim.corners.clone();
+        few.images.truncate(MIN_IMAGES - 1);
+        assert!(matches!(
+            run(&few, model),
+            Err(IntrinsicsError::TooFewImages { got, needed: MIN_IMAGES }) if got == MIN_IMAGES - 1
+        ));
+        let mut sparse = sim.corners.clone();
+        sparse.images[4].corners.truncate(MIN_CORNERS_PER_IMAGE - 1);
+        let err = run(&sparse, model).unwrap_err();
+        assert!(
+            matches!(&err, IntrinsicsError::TooFewCorners { image, got, .. }
+                if image == "view_004" && *got == MIN_CORNERS_PER_IMAGE - 1),
+            "{err}"
+        );
+    }
+}
+
+#[test]
+fn corners_outside_the_image_or_off_the_board() {
+    let model = IntrinsicModel::KannalaBrandt;
+    let sim = simulated(model, 6, 9, 2);
+    let mut outside = sim.corners.clone();
+    outside.images[2].corners[3].u = f64::from(outside.width) + 4.0;
+    let err = run(&outside, model).unwrap_err();
+    assert!(
+        matches!(&err, IntrinsicsError::CornerOutsideImage { image, .. } if image == "view_002"),
+        "{err}"
+    );
+    let mut nan = sim.corners.clone();
+    nan.images[0].corners[0].v = f64::NAN;
+    assert!(matches!(
+        run(&nan, model),
+        Err(IntrinsicsError::CornerOutsideImage { .. })
+    ));
+    let mut off = sim.corners.clone();
+    off.images[1].corners[0].row = 6;
+    assert!(matches!(
+        run(&off, model),
+        Err(IntrinsicsError::CornerNotOnBoard { row: 6, .. })
+    ));
+}
+
+#[test]
+fn corner_files_round_trip_and_malformed_ones_are_named() {
+    let sim = simulated(IntrinsicModel::KannalaBrandt, 6, 9, 4);
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("corners.json");
+    sim.corners.write(&path).unwrap();
+    assert_eq!(CornerSet::read(&path).unwrap(), sim.corners);
+
+    let text = std::fs::read_to_string(&path).unwrap();
+    let cut = &text[..text.len() / 2];
+    std::fs::write(&path, cut).unwrap();
+    let err = CornerSet::read(&path).unwrap_err();
+    let message = err.to_string();
+    assert!(matches!(err, IntrinsicsError::CornerFile { .. }));
+    assert!(
+        message.contains("corners.json") && message.contains("line"),
+        "{message}"
+    );
+    assert!(!message.contains('\n'), "{message}");
+
+    let missing = CornerSet::read(dir.path().join("absent.json")).unwrap_err();
+    assert!(matches!(missing, IntrinsicsError::Io { .. }), "{missing}");
+}
+
+#[test]
+fn the_unified_model_is_refused_by_name() {
+    for name in ["mei", "unified"] {
+        let err = name.parse::<IntrinsicModel>().unwrap_err();
+        assert!(err.to_string().contains("left out"), "{err}");
+    }
+    assert_eq!(
+        "kb".parse::<IntrinsicModel>().unwrap(),
+        IntrinsicModel::KannalaBrandt
+    );
+    assert_eq!(
+        "pinhole".parse::<IntrinsicModel>().unwrap(),
+        IntrinsicModel::PinholeRadtan
+    );
+}
