@@ -4,11 +4,16 @@
 //! camera) for the projections, and CamOdoCal's radial-tangential inverse (8 fixed-point steps,
 //! `m = md - (D(m) - m)`) for the unprojections. Each benchmark runs over 1024 points spread over
 //! the image, so the figures are per 1024 points; divide by 1024 for per point.
+//!
+//! The machine these run on is shared, and the load inflates wall time several-fold; so before
+//! the criterion runs, the bench prints the *CPU time* of its thread per point for each path
+//! (over spans of a quarter second or more). Instruction counts, which no load changes, come
+//! from `camera-models/examples/callgrind_paths.rs` under valgrind.
 #![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)]
 
 use std::hint::black_box;
 
-use criterion::{Criterion, Throughput, criterion_group, criterion_main};
+use criterion::{Criterion, Throughput, criterion_group};
 use ibc_camera_models::{CameraModel, KannalaBrandt, PinholeRadtan, Unified};
 use nalgebra::{Vector2, Vector3};
 
@@ -239,6 +244,122 @@ fn set_params(c: &mut Criterion) {
     g.finish();
 }
 
+/// CPU time of the calling thread in nanoseconds, from `/proc/thread-self/schedstat` (Linux);
+/// `None` where unavailable. Updated at scheduler ticks, so only long spans are meaningful.
+fn thread_cpu_ns() -> Option<f64> {
+    std::fs::read_to_string("/proc/thread-self/schedstat")
+        .ok()?
+        .split_whitespace()
+        .next()?
+        .parse()
+        .ok()
+}
+
+/// CPU time per item of `f` over `items`, repeated until a quarter second of CPU time has
+/// passed (the clock, a file read, is read every 64 passes so its cost stays out of the
+/// figure); the best of three such spans.
+fn cpu_ns_per_item<T>(items: &[T], mut f: impl FnMut(&T)) -> f64 {
+    let mut best = f64::INFINITY;
+    for _ in 0..3 {
+        let (start, mut calls) = (thread_cpu_ns().unwrap_or(0.0), 0usize);
+        let mut spent = 0.0;
+        while spent < 2.5e8 {
+            for _ in 0..64 {
+                for item in items {
+                    f(black_box(item));
+                }
+            }
+            calls += 64 * items.len();
+            spent = thread_cpu_ns().unwrap_or(0.0) - start;
+        }
+        best = best.min(spent / calls as f64);
+    }
+    best
+}
+
+/// Prints the CPU time per point of every path before the criterion runs. Runs only under
+/// `cargo bench` (criterion's `--bench` flag), not when `cargo test` smoke-runs benches.
+fn cpu_time_report() {
+    if !std::env::args().any(|a| a == "--bench") || thread_cpu_ns().is_none() {
+        return;
+    }
+    let (kb, euroc, mei) = (kb(), euroc(), mei());
+    let (kb_pixels, kb_points) = samples(&kb);
+    let (pin_pixels, pin_points) = samples(&euroc);
+    let (mei_pixels, mei_points) = samples(&mei);
+    let report =
+        |name: &str, ns: f64| println!("cpu-time camera_models/{name}: {ns:.1} ns per point");
+    report(
+        "project/baseline_ideal_pinhole",
+        cpu_ns_per_item(&pin_points, |p| {
+            black_box(Vector2::new(
+                458.654 * p.x / p.z + 367.215,
+                457.296 * p.y / p.z + 248.375,
+            ));
+        }),
+    );
+    report(
+        "project/kannala_brandt",
+        cpu_ns_per_item(&kb_points, |p| {
+            let _ = black_box(kb.project(p));
+        }),
+    );
+    report(
+        "project/kannala_brandt_with_all_jacobians",
+        cpu_ns_per_item(&kb_points, |p| {
+            let _ = black_box(kb.project_with_jacobians(p));
+        }),
+    );
+    report(
+        "project/pinhole_radtan",
+        cpu_ns_per_item(&pin_points, |p| {
+            let _ = black_box(euroc.project(p));
+        }),
+    );
+    report(
+        "project/pinhole_radtan_with_all_jacobians",
+        cpu_ns_per_item(&pin_points, |p| {
+            let _ = black_box(euroc.project_with_jacobians(p));
+        }),
+    );
+    report(
+        "project/unified",
+        cpu_ns_per_item(&mei_points, |p| {
+            let _ = black_box(mei.project(p));
+        }),
+    );
+    report(
+        "project/unified_with_all_jacobians",
+        cpu_ns_per_item(&mei_points, |p| {
+            let _ = black_box(mei.project_with_jacobians(p));
+        }),
+    );
+    report(
+        "unproject/kannala_brandt_fast",
+        cpu_ns_per_item(&kb_pixels, |px| {
+            let _ = black_box(kb.unproject_fast(px));
+        }),
+    );
+    report(
+        "unproject/kannala_brandt_companion",
+        cpu_ns_per_item(&kb_pixels, |px| {
+            let _ = black_box(kb.unproject(px));
+        }),
+    );
+    report(
+        "unproject/pinhole_radtan",
+        cpu_ns_per_item(&pin_pixels, |px| {
+            let _ = black_box(euroc.unproject(px));
+        }),
+    );
+    report(
+        "unproject/unified",
+        cpu_ns_per_item(&mei_pixels, |px| {
+            let _ = black_box(mei.unproject(px));
+        }),
+    );
+}
+
 criterion_group! {
     name = benches;
     config = Criterion::default()
@@ -247,4 +368,9 @@ criterion_group! {
         .measurement_time(std::time::Duration::from_secs(2));
     targets = projections, unprojections, set_params
 }
-criterion_main!(benches);
+
+fn main() {
+    cpu_time_report();
+    benches();
+    Criterion::default().configure_from_args().final_summary();
+}

@@ -10,12 +10,18 @@ use nalgebra::{Matrix2x3, Matrix3x2, Unit, Vector2, Vector3};
 use crate::error::{ParameterError, ProjectionError, UnprojectionError};
 use crate::model::{CameraModel, ParamJacobian, ProjectionJacobians, UnprojectionJacobians};
 use crate::polynomial;
-use crate::series::{sin_minus_x_cos_over_cube, sinc, x_minus_sin_over_cube};
+use crate::series::{sin_minus_x_cos_over_cube, sinc_with, x_minus_sin_over_cube};
 use crate::validate;
 
 /// Iteration bound of the safeguarded Newton-bisection (bisection alone reaches full f64
-/// precision on `[0, pi]` in about 60 steps; Newton needs about 5).
+/// precision on `[0, pi]` in about 60 steps; Newton needs about 3).
 pub const MAX_FAST_ITERATIONS: usize = 100;
+
+/// The Newton-bisection tests its quadratic-convergence stop only for steps below this
+/// fraction of theta: a larger step could pass it only where |r'' / r'| < 1e-4 (a lens that is
+/// equidistant to within 1e-4, which then takes one step more), and skipping the test saves
+/// evaluating r'' in the early steps.
+const QUADRATIC_TEST_BELOW: f64 = 1e-6;
 
 /// Eigenvalues whose imaginary part is within this fraction of `1 + |re|` are taken as real
 /// roots: near the fold the two real roots that meet there come out of the eigenvalue
@@ -54,7 +60,8 @@ pub const FOLD_SLACK: f64 = 8.0 * f64::EPSILON;
 /// root is unique. [`CameraModel::unproject`] does it as the paper does, through the
 /// eigenvalues of the companion matrix, done exactly: the degree is that of the highest
 /// non-zero coefficient, the matrix is a fixed-size stack array, the QR iteration is bounded,
-/// the smallest real root in `[0, theta_max]` is taken and polished by safeguarded Newton.
+/// the smallest real root in `[0, theta_max]` is taken and polished by safeguarded Newton
+/// (that root is the only one there, so the iteration stops as soon as it has found it).
 /// [`CameraModel::unproject_fast`] runs the safeguarded Newton-bisection alone (started at
 /// `theta = d (1 - k1 d^2)`), for hot loops; both agree to 1e-12 rad. The paper's `theta = d` fallback for
 /// pixels with no root is only offered through
@@ -170,6 +177,14 @@ impl KannalaBrandt {
         1.0 + t2 * (3.0 * k1 + t2 * (5.0 * k2 + t2 * (7.0 * k3 + t2 * 9.0 * k4)))
     }
 
+    /// `r''(theta) = 6 k1 theta + 20 k2 theta^3 + 42 k3 theta^5 + 72 k4 theta^7`.
+    #[inline]
+    fn radius_second_derivative(&self, theta: f64) -> f64 {
+        let [k1, k2, k3, k4] = self.k();
+        let t2 = theta * theta;
+        theta * (6.0 * k1 + t2 * (20.0 * k2 + t2 * (42.0 * k3 + t2 * 72.0 * k4)))
+    }
+
     /// `r(theta) / theta = 1 + k1 theta^2 + k2 theta^4 + k3 theta^6 + k4 theta^8`.
     #[inline]
     fn radius_over_theta(&self, theta: f64) -> f64 {
@@ -197,26 +212,21 @@ impl KannalaBrandt {
         }
         let [k1, k2, k3, k4] = self.k();
         let coeffs = [-d, 1.0, 0.0, k1, 0.0, k2, 0.0, k3, 0.0, k4];
-        let roots = polynomial::roots(&coeffs).map_err(|e| {
+        // r is increasing on [0, theta_max] and r(0) = 0 <= d <= r(theta_max), so exactly one
+        // root lies there: the first real eigenvalue found in the window is the smallest real
+        // root in it, and the iteration stops there.
+        let slack = NEAR_REAL * (1.0 + self.theta_max);
+        let in_window = |re: f64, im: f64| {
+            im.abs() <= NEAR_REAL * (1.0 + re.abs()) && re >= -slack && re <= self.theta_max + slack
+        };
+        let root = polynomial::first_root_where(&coeffs, in_window).map_err(|e| {
             UnprojectionError::EigenvalueIterationLimit {
                 iterations: e.iterations,
             }
         })?;
-        let slack = NEAR_REAL * (1.0 + self.theta_max);
-        let mut best = f64::INFINITY;
-        for i in 0..roots.len {
-            let (re, im) = (roots.re[i], roots.im[i]);
-            if im.abs() <= NEAR_REAL * (1.0 + re.abs())
-                && re >= -slack
-                && re <= self.theta_max + slack
-                && re < best
-            {
-                best = re;
-            }
-        }
-        if !best.is_finite() {
+        let Some((best, _)) = root else {
             return Err(UnprojectionError::NoRealRoot);
-        }
+        };
         self.newton_bisection(d, best.clamp(0.0, self.theta_max))
     }
 
@@ -262,7 +272,12 @@ impl KannalaBrandt {
     }
 
     /// Solve r(theta) = d on the bracket [0, theta_max] (where r(0) - d < 0 <= r(theta_max) - d)
-    /// from `theta`: Newton steps, replaced by bisection whenever they leave the bracket.
+    /// from `theta`: Newton steps, replaced by bisection whenever they leave the bracket. It
+    /// stops when a step is below 2 ulps, or after a Newton step whose remaining error, by
+    /// Newton's quadratic convergence about |r'' / (2 r')| step^2, is below half an ulp: that
+    /// saves the last step that would only confirm convergence, and the many steps that rounding
+    /// noise in r would otherwise cost where r' is small (near pi on wide lenses, near the
+    /// fold), where steps of a few ulps keep bouncing around the root.
     #[inline]
     fn newton_bisection(&self, d: f64, mut theta: f64) -> Result<f64, UnprojectionError> {
         let (mut lo, mut hi) = (0.0, self.theta_max);
@@ -277,11 +292,22 @@ impl KannalaBrandt {
             } else {
                 hi = theta;
             }
-            let mut next = theta - f / self.radius_derivative(theta);
-            if !(next > lo && next < hi) {
+            let derivative = self.radius_derivative(theta);
+            let step = f / derivative;
+            let mut next = theta - step;
+            let newton = next > lo && next < hi;
+            if !newton {
                 next = 0.5 * (lo + hi);
             }
             if (next - theta).abs() <= 2.0 * f64::EPSILON * next || next == theta {
+                return Ok(next);
+            }
+            // (r'' is only evaluated once the step is small.)
+            if newton
+                && step.abs() <= QUADRATIC_TEST_BELOW * next
+                && (self.radius_second_derivative(theta) * step * step).abs()
+                    <= 0.5 * f64::EPSILON * next * derivative.abs()
+            {
                 return Ok(next);
             }
             theta = next;
@@ -343,9 +369,18 @@ impl KannalaBrandt {
     /// sinc(theta) / (r(theta) / theta) so it is exact at d = 0.
     #[inline]
     fn ray_from_theta(&self, m: &Vector2<f64>, theta: f64) -> Unit<Vector3<f64>> {
-        let (sin, cos) = theta.sin_cos();
-        let sinc = if theta == 0.0 { 1.0 } else { sin / theta };
-        let s = sinc / self.radius_over_theta(theta);
+        self.ray_from_sin_cos(m, theta, theta.sin_cos())
+    }
+
+    /// [`ray_from_theta`](Self::ray_from_theta) with `(sin(theta), cos(theta))` given.
+    #[inline]
+    fn ray_from_sin_cos(
+        &self,
+        m: &Vector2<f64>,
+        theta: f64,
+        (sin, cos): (f64, f64),
+    ) -> Unit<Vector3<f64>> {
+        let s = sinc_with(theta, sin) / self.radius_over_theta(theta);
         Unit::new_normalize(Vector3::new(m.x * s, m.y * s, cos))
     }
 
@@ -411,7 +446,7 @@ impl KannalaBrandt {
     fn project_core(&self, p: &Vector3<f64>) -> Result<ProjectionCore, ProjectionError> {
         validate::finite_nonzero_point(p)?;
         let rho = fast_hypot(p.x, p.y);
-        let theta = rho.atan2(p.z);
+        let theta = incidence_angle(rho, p.z);
         if theta > self.theta_max {
             return Err(ProjectionError::BeyondFold {
                 theta,
@@ -434,6 +469,7 @@ impl KannalaBrandt {
         );
         Ok(ProjectionCore {
             pixel,
+            rho,
             theta,
             theta_over_rho,
             g,
@@ -448,13 +484,16 @@ impl KannalaBrandt {
         let t2 = t * t;
         // q = (d g / d rho) / rho = N(theta) / rho^3 with N = r' sin cos - r, written as
         // (N / theta^3) (theta / rho)^3 and N / theta^3 expanded so nothing cancels at theta = 0.
+        // sin(2 theta) = 2 rho z / |P|^2: no trigonometric call.
         let a_over_t2 = 3.0 * k1 + t2 * (5.0 * k2 + t2 * (7.0 * k3 + t2 * 9.0 * k4));
         let b_over_t3 = k1 + t2 * (k2 + t2 * (k3 + t2 * k4));
-        let n_over_t3 =
-            a_over_t2 * sinc(2.0 * t) - b_over_t3 - 4.0 * x_minus_sin_over_cube(2.0 * t);
+        let n2 = p.norm_squared();
+        let sin_2t = 2.0 * c.rho * p.z / n2;
+        let n_over_t3 = a_over_t2 * sinc_with(2.0 * t, sin_2t)
+            - b_over_t3
+            - 4.0 * x_minus_sin_over_cube(2.0 * t, sin_2t);
         let tr = c.theta_over_rho;
         let q = n_over_t3 * tr * tr * tr;
-        let n2 = p.norm_squared();
         let g_z = -self.radius_derivative(t) / n2;
         let (x, y) = (p.x, p.y);
         let (mu, mv) = (self.mu(), self.mv());
@@ -481,9 +520,28 @@ fn fast_hypot(x: f64, y: f64) -> f64 {
     }
 }
 
+/// `atan2(rho, z)` for `rho >= 0`, in `[0, pi]`, through `atan` of a ratio in `[-1, 1]` (half
+/// the instructions of glibc's `atan2`; within one ulp of it). Exactly 0 and pi on the axis.
+#[inline]
+fn incidence_angle(rho: f64, z: f64) -> f64 {
+    use std::f64::consts::{FRAC_PI_2, PI};
+    if rho == 0.0 {
+        return if z >= 0.0 { 0.0 } else { PI };
+    }
+    if z >= rho {
+        (rho / z).atan()
+    } else if -z >= rho {
+        PI - (rho / -z).atan()
+    } else {
+        FRAC_PI_2 - (z / rho).atan()
+    }
+}
+
 /// What projection computes once and the Jacobians reuse.
 struct ProjectionCore {
     pixel: Vector2<f64>,
+    /// sqrt(x^2 + y^2).
+    rho: f64,
     theta: f64,
     theta_over_rho: f64,
     g: f64,
@@ -575,15 +633,16 @@ impl CameraModel for KannalaBrandt {
         let m = self.normalized(pixel)?;
         let d = m.norm();
         let t = self.theta_from_radius(d)?;
-        let ray = self.ray_from_theta(&m, t);
+        let (sin_t, cos_t) = t.sin_cos();
+        let ray = self.ray_from_sin_cos(&m, t, (sin_t, cos_t));
         let [k1, k2, k3, k4] = self.k();
         let t2 = t * t;
         let big_r = self.radius_over_theta(t);
         let rp = self.radius_derivative(t);
-        let sc = sinc(t);
+        let sc = sinc_with(t, sin_t);
         let s = sc / big_r;
         // S = sinc / R; S'/theta = ((sinc'/theta) R - sinc (R'/theta)) / R^2, all even series.
-        let dsinc_over_t = -sin_minus_x_cos_over_cube(t);
+        let dsinc_over_t = -sin_minus_x_cos_over_cube(t, (sin_t, cos_t));
         let dr_over_t = 2.0 * k1 + t2 * (4.0 * k2 + t2 * (6.0 * k3 + t2 * 8.0 * k4));
         let ds_over_t = (dsinc_over_t * big_r - sc * dr_over_t) / (big_r * big_r);
         // Q = S'(theta) / (d r'(theta)) = (S'/theta) (theta / d) / r' with theta / d = 1 / R.
@@ -603,7 +662,6 @@ impl CameraModel for KannalaBrandt {
         let d_ray_d_pixel = Matrix3x2::from_columns(&[col_u, col_v]);
         let mut jp = ParamJacobian::<3>::zeros();
         // k_i: theta moves by -theta^(2i+1) / r', and S also depends on k_i through R.
-        let sin_t = t.sin();
         let mut pow = t2; // theta^(2i)
         for i in 0..4 {
             let dtheta = -pow * t / rp;
@@ -626,5 +684,35 @@ impl CameraModel for KannalaBrandt {
 
     fn radians_per_pixel_at_center(&self) -> f64 {
         1.0 / self.mu().min(self.mv())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::f64::consts::PI;
+
+    use proptest::prelude::*;
+
+    use super::incidence_angle;
+
+    #[test]
+    fn incidence_angle_is_exact_on_the_axis() {
+        assert_eq!(incidence_angle(0.0, 2.0), 0.0);
+        assert_eq!(incidence_angle(0.0, -2.0), PI);
+        // The branch boundaries |z| = rho.
+        assert_eq!(incidence_angle(1.0, 1.0), 1.0_f64.atan2(1.0));
+        assert_eq!(incidence_angle(1.0, -1.0), 1.0_f64.atan2(-1.0));
+    }
+
+    proptest! {
+        /// The `atan`-based incidence angle (the speed path of `project`) agrees with `atan2`
+        /// to a few ulps over the whole sphere, all three branches and both signs of z.
+        #[test]
+        fn incidence_angle_matches_atan2(theta in 0.0..PI, scale in 1e-3..1e3f64) {
+            let (rho, z) = (scale * theta.sin(), scale * theta.cos());
+            let want = rho.atan2(z);
+            let got = incidence_angle(rho, z);
+            prop_assert!((got - want).abs() <= 4.0 * f64::EPSILON * want, "{got} vs {want}");
+        }
     }
 }

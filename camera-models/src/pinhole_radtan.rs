@@ -122,8 +122,7 @@ impl PinholeRadtan {
             return Err(ProjectionError::BehindCamera { z: p.z });
         }
         let m = Vector2::new(p.x / p.z, p.y / p.z);
-        let radius = m.norm();
-        if radius > self.injective_radius {
+        if let Err(radius) = validate::within_radius(&m, self.injective_radius) {
             return Err(ProjectionError::BeyondInjectiveRadius {
                 radius,
                 injective_radius: self.injective_radius,
@@ -143,8 +142,7 @@ impl PinholeRadtan {
             (pixel.y - self.cy()) / self.fy(),
         );
         let (m, j) = self.radtan().undistort(&md, self.injective_radius)?;
-        let radius = m.norm();
-        if radius > self.injective_radius {
+        if let Err(radius) = validate::within_radius(&m, self.injective_radius) {
             return Err(UnprojectionError::BeyondInjectiveRadius {
                 radius,
                 injective_radius: self.injective_radius,
@@ -189,18 +187,19 @@ impl CameraModel for PinholeRadtan {
     ) -> Result<ProjectionJacobians, ProjectionError> {
         let m = self.normalized(p_cam)?;
         let (md, j_d) = self.radtan().distort_with_jacobian(&m);
+        // diag(fx, fy) J_D dm/dp with dm/dp = (1 / z) [[1, 0, -mx], [0, 1, -my]], written out.
         let iz = 1.0 / p_cam.z;
-        let dm_dp = Matrix2x3::new(iz, 0.0, -m.x * iz, 0.0, iz, -m.y * iz);
-        let mut jp = ParamJacobian::<2>::zeros();
-        let d_pixel_d_point = radtan::chain_projection(
-            (0, 4),
-            (self.fx(), self.fy()),
-            &m,
-            &md,
-            &j_d,
-            &dm_dp,
-            &mut jp,
+        let (s0, s1) = (self.fx() * iz, self.fy() * iz);
+        let (j00, j01, j10, j11) = (j_d[(0, 0)], j_d[(0, 1)], j_d[(1, 0)], j_d[(1, 1)]);
+        let d_pixel_d_point = Matrix2x3::new(
+            s0 * j00,
+            s0 * j01,
+            -s0 * (j00 * m.x + j01 * m.y),
+            s1 * j10,
+            s1 * j11,
+            -s1 * (j10 * m.x + j11 * m.y),
         );
+        let jp = radtan::projection_param_jacobian((0, 4), (self.fx(), self.fy()), &m, &md);
         Ok(ProjectionJacobians {
             pixel: Vector2::new(self.fx() * md.x + self.cx(), self.fy() * md.y + self.cy()),
             d_pixel_d_point,

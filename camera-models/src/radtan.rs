@@ -333,39 +333,42 @@ fn bisect_sign_change(f: &impl Fn(f64) -> f64, mut lo: f64, mut hi: f64) -> f64 
     lo
 }
 
-/// Chain rule shared by the pinhole and unified projections. The pixel is
+/// d pixel / d params shared by the pinhole and unified projections. The pixel is
 /// `(f1 Dx(m) + c1, f2 Dy(m) + c2)` with the parameters laid out as `[.., k1, k2, p1, p2, ..,
-/// f1, f2, c1, c2]` (coefficients from column `coeff_col`, `f1, f2, c1, c2` from `focal_col`).
-/// Given dD/dm `j_d` and dm/dpoint `dm_dp`, fills those parameter columns and returns
-/// d pixel / d point.
+/// f1, f2, c1, c2]` (coefficients from column `coeff_col`, `f1, f2, c1, c2` from `focal_col`);
+/// the other columns are zero. Built column by column in one go (no zeroing, then writing).
 #[inline]
-pub fn chain_projection(
+pub fn projection_param_jacobian(
     coeffs_at: (usize, usize),
     f: (f64, f64),
     m: &Vector2<f64>,
     md: &Vector2<f64>,
-    j_d: &Matrix2<f64>,
-    dm_dp: &nalgebra::Matrix2x3<f64>,
-    jp: &mut crate::model::ParamJacobian<2>,
-) -> nalgebra::Matrix2x3<f64> {
+) -> crate::model::ParamJacobian<2> {
     let (coeff_col, focal_col) = coeffs_at;
-    let scale = Matrix2::new(f.0, 0.0, 0.0, f.1);
     let jc = Radtan::jacobian_coeffs(m);
+    let mut columns = [[0.0; 2]; crate::model::MAX_PARAMS];
     for c in 0..4 {
-        jp[(0, coeff_col + c)] = f.0 * jc[(0, c)];
-        jp[(1, coeff_col + c)] = f.1 * jc[(1, c)];
+        columns[coeff_col + c] = [f.0 * jc[(0, c)], f.1 * jc[(1, c)]];
     }
-    jp[(0, focal_col)] = md.x;
-    jp[(1, focal_col + 1)] = md.y;
-    jp[(0, focal_col + 2)] = 1.0;
-    jp[(1, focal_col + 3)] = 1.0;
-    scale * j_d * dm_dp
+    columns[focal_col] = [md.x, 0.0];
+    columns[focal_col + 1] = [0.0, md.y];
+    columns[focal_col + 2] = [1.0, 0.0];
+    columns[focal_col + 3] = [0.0, 1.0];
+    columns.into()
+}
+
+/// `diag(f1, f2) a`: the rows of a 2x3 matrix scaled (d pixel / d point from d md / d point).
+#[inline]
+pub fn scale_rows(mut a: nalgebra::Matrix2x3<f64>, f: (f64, f64)) -> nalgebra::Matrix2x3<f64> {
+    a.row_mut(0).scale_mut(f.0);
+    a.row_mut(1).scale_mut(f.1);
+    a
 }
 
 /// Chain rule shared by the pinhole and unified unprojections: the undistorted point m solves
 /// `D(m) = md`, `md = ((u - c1) / f1, (v - c2) / f2)`, and the ray is a function of m with
 /// d ray / d m = `l`. Fills the parameter columns of the coefficients and of `f1, f2, c1, c2`
-/// (layout as in [`chain_projection`]) and returns d ray / d pixel.
+/// (layout as in [`projection_param_jacobian`]) and returns d ray / d pixel.
 #[inline]
 pub fn chain_unprojection(
     coeffs_at: (usize, usize),

@@ -150,8 +150,7 @@ impl Unified {
             return Err(ProjectionError::OutsideMeiDomain { cos_theta, limit });
         }
         let m = Vector2::new(p.x / den, p.y / den);
-        let radius = m.norm();
-        if radius > self.injective_radius {
+        if let Err(radius) = validate::within_radius(&m, self.injective_radius) {
             return Err(ProjectionError::BeyondInjectiveRadius {
                 radius,
                 injective_radius: self.injective_radius,
@@ -172,14 +171,13 @@ impl Unified {
             (pixel.y - self.v0()) / self.gamma2(),
         );
         let (m, j_d) = self.radtan().undistort(&md, self.injective_radius)?;
-        let r2 = m.norm_squared();
-        let radius = r2.sqrt();
-        if radius > self.injective_radius {
+        if let Err(radius) = validate::within_radius(&m, self.injective_radius) {
             return Err(UnprojectionError::BeyondInjectiveRadius {
                 radius,
                 injective_radius: self.injective_radius,
             });
         }
+        let r2 = m.norm_squared();
         let xi = self.xi();
         let q = 1.0 + (1.0 - xi * xi) * r2;
         if q < 0.0 {
@@ -254,20 +252,22 @@ impl CameraModel for Unified {
         let xi = self.xi();
         let (x, y, z) = (p_cam.x, p_cam.y, p_cam.z);
         // m = (x, y) / den with den = z + xi |P|; d den / dP = (xi x/n, xi y/n, 1 + xi z/n).
-        let dden = Vector3::new(xi * x / n, xi * y / n, 1.0 + xi * z / n);
+        // (Two divisions, 1/n and 1/den; the divider is what limits this function's speed.)
+        let xi_over_n = xi / n;
+        let dden = Vector3::new(xi_over_n * x, xi_over_n * y, 1.0 + xi_over_n * z);
         let iden = 1.0 / den;
+        let (mx, my) = (m.x * iden, m.y * iden);
         let dm_dp = Matrix2x3::new(
-            iden - m.x * dden.x * iden,
-            -m.x * dden.y * iden,
-            -m.x * dden.z * iden,
-            -m.y * dden.x * iden,
-            iden - m.y * dden.y * iden,
-            -m.y * dden.z * iden,
+            iden - mx * dden.x,
+            -mx * dden.y,
+            -mx * dden.z,
+            -my * dden.x,
+            iden - my * dden.y,
+            -my * dden.z,
         );
-        let mut jp = ParamJacobian::<2>::zeros();
         let (g1, g2) = (self.gamma1(), self.gamma2());
-        let d_pixel_d_point =
-            radtan::chain_projection((1, 5), (g1, g2), &m, &md, &j_d, &dm_dp, &mut jp);
+        let mut jp = radtan::projection_param_jacobian((1, 5), (g1, g2), &m, &md);
+        let d_pixel_d_point = radtan::scale_rows(j_d * dm_dp, (g1, g2));
         // d m / d xi = -m |P| / den.
         let dm_dxi = -m * (n * iden);
         let d_xi = j_d * dm_dxi;

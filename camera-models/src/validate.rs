@@ -1,6 +1,6 @@
 //! Checks on parameters and points shared by the models.
 
-use nalgebra::Vector3;
+use nalgebra::{Vector2, Vector3};
 
 use crate::error::{ParameterError, ProjectionError};
 
@@ -49,6 +49,17 @@ pub fn non_negative(name: &'static str, value: f64) -> Result<(), ParameterError
         Ok(())
     } else {
         Err(ParameterError::Negative { name, value })
+    }
+}
+
+/// `Err(|m|)` when `|m| > max_radius` (an infinite `max_radius` never is), comparing squares
+/// so that the hot paths take no square root when the point is inside.
+#[inline]
+pub fn within_radius(m: &Vector2<f64>, max_radius: f64) -> Result<(), f64> {
+    if m.norm_squared() > max_radius * max_radius {
+        Err(m.norm())
+    } else {
+        Ok(())
     }
 }
 

@@ -217,3 +217,31 @@ fn kb_fallback_is_flagged_for_pixels_beyond_the_fold() {
             .is_err()
     );
 }
+
+#[test]
+fn kb_subnormal_coefficient_neither_hangs_nor_misleads() {
+    // With k4 = +-1e-310 the companion matrix holds -c_i / k4 = infinity; balancing such a
+    // matrix used to loop forever (in `new`, through the fold's quartic, and per pixel).
+    for k4 in [1e-310, -1e-310, 5e-324] {
+        let kb = KannalaBrandt::new(1000, 1000, [0.0, 0.0, 0.0, k4, 500.0, 500.0, 500.0, 500.0])
+            .unwrap();
+        // r(theta) = theta to within 1e-300: no fold before pi.
+        assert_eq!(kb.theta_max(), std::f64::consts::PI);
+        let px = Vector2::new(900.0, 500.0);
+        let fast = kb.unproject_fast(&px).unwrap();
+        // The equidistant ray: theta = d = 0.8.
+        assert!((fast.z - 0.8_f64.cos()).abs() < 1e-15, "{k4:e}");
+        // The companion path either agrees or says why it cannot, never a wrong ray.
+        match kb.unproject(&px) {
+            Ok(ray) => assert!(ray.angle(&fast) <= 1e-12, "{k4:e}"),
+            Err(e) => assert!(
+                matches!(
+                    e,
+                    UnprojectionError::EigenvalueIterationLimit { .. }
+                        | UnprojectionError::NoRealRoot
+                ),
+                "{k4:e}: {e}"
+            ),
+        }
+    }
+}

@@ -9,17 +9,18 @@
 //! rows per point (which divide by depth), each bearing `f_i` gives the three rows of
 //! `f_i x (c_0 + sum_k alpha_ik d_k) = 0` with `d_k = c_k - c_0`, valid for rays at any
 //! incidence, also beyond 90 degrees. Their normal matrix is `sum_i (a_i a_i^T) ⊗ (I - f_i f_i^T)`
-//! with `a_i = (1, alpha_i1, ..)`, built in O(n).
+//! with `a_i = (1, alpha_i1, ..)`, built in O(n) (module `epnp_sums`, with an AVX path).
 //!
 //! Specifics of this implementation:
 //! - Control points sit at the centroid and one standard deviation along each principal axis,
 //!   so `alpha` is a whitened coordinate and `d_k . d_l = s_k^2 delta_kl` are the quadratic
 //!   constraints (equivalent to the paper's control-point distances).
 //! - The centroid block `c_0` is eliminated in closed form (a Schur complement), leaving a
-//!   9 x 9 (planar: 6 x 6) eigenproblem, solved by a fixed-size symmetric QR.
+//!   9 x 9 (planar: 6 x 6) eigenproblem, solved by a fixed-size symmetric QL iteration that
+//!   forms only the wanted eigenvectors.
 //! - Betas for null-space dimensions 1, 2 and 3 by the paper's linearization, each refined by
 //!   Gauss-Newton over four betas (paper section 3.4); the candidate with the smallest bearing
-//!   error wins.
+//!   error wins. Starts that converge to the same betas are scored once.
 //! - The sign of the solution is fixed by `sum_i f_i . p_i > 0` (points along their rays), not
 //!   by `z > 0`, so rays behind the image plane are fine.
 //! - Planar point sets (rank-2 scatter) use three control points and the three constraints of
@@ -33,12 +34,12 @@
 //!   N = 4, which needs relinearization); the P3P solutions of the four triples are added as
 //!   candidates instead, so the minimal case is solved exactly.
 
-use nalgebra::{
-    Cholesky, Isometry3, Matrix3, Matrix4, Matrix6, Point3, U3, Vector3, Vector4, Vector6,
-};
+use nalgebra::{Isometry3, Matrix3, Point3, Vector3};
 
+use crate::epnp_sums::{DepthWeighting, NormalSums, PRODUCTS, WhitenedFrame, total_chord_error};
 use crate::error::{Degeneracy, PnpError};
-use crate::geometry::{isometry_from, rotation_from_correlation, total_chord_error};
+use crate::geometry::{isometry_from, rotation_from_correlation};
+use crate::small_linear::{cholesky_solve_4, solve_linear};
 use crate::symmetric_eigen::smallest_eigenpairs;
 use crate::validate::{PointSpread, check_bearings_spread, check_correspondences, point_spread};
 
@@ -124,6 +125,9 @@ pub(crate) struct Candidate {
     pub guess: usize,
 }
 
+/// The minimal case's four triples: the indices left when one of the four is skipped.
+const TRIPLES: [[usize; 3]; EPNP_MIN_POINTS] = [[1, 2, 3], [0, 2, 3], [0, 1, 3], [0, 1, 2]];
+
 /// EPnP on validated input with known principal axes.
 pub(crate) fn solve(
     bearings: &[Vector3<f64>],
@@ -144,10 +148,9 @@ pub(crate) fn solve(
             // Four non-coplanar points leave a four-dimensional null space, which the
             // linearizations for N <= 3 cannot reach: add the P3P solutions of every triple,
             // ranked by the error on all four points.
-            for skip in 0..EPNP_MIN_POINTS {
-                let index: Vec<usize> = (0..EPNP_MIN_POINTS).filter(|&i| i != skip).collect();
-                let y = [bearings[index[0]], bearings[index[1]], bearings[index[2]]];
-                let x = [points[index[0]], points[index[1]], points[index[2]]];
+            for index in TRIPLES {
+                let y = index.map(|i| bearings[i]);
+                let x = index.map(|i| points[i]);
                 for &(rotation, translation) in crate::p3p::solve_raw(&y, &x).iter() {
                     let error = total_chord_error(&rotation, &translation, bearings, points);
                     keep_better(
@@ -169,15 +172,19 @@ pub(crate) fn solve(
         && first.dirs > 0
     {
         // The rows of point i carry the factor |p_i| (|f x p| = |p| sin(angle)); dividing it
-        // out with the first pass's depths turns the algebraic error into the angular one.
-        let depths: Vec<f64> = points
-            .iter()
-            .map(|x| (first.rotation * x.coords + first.translation).norm())
-            .collect();
-        let mean = depths.iter().sum::<f64>() / depths.len() as f64;
-        if depths.iter().all(|d| *d > 0.0) && mean.is_finite() {
-            let weights: Vec<f64> = depths.iter().map(|d| (mean / d).powi(2)).collect();
-            let system = ControlSystem::new(bearings, points, Some(&weights), spread, first.dirs)?;
+        // out with the first pass's depths turns the algebraic error into the angular one:
+        // weight (mean depth / depth)^2, the depths recomputed where the weights are summed.
+        let mut sum = 0.0;
+        let mut positive = true;
+        for x in points {
+            let depth = (first.rotation * x.coords + first.translation).norm();
+            positive &= depth > 0.0;
+            sum += depth;
+        }
+        let mean = sum / points.len() as f64;
+        if positive && mean.is_finite() {
+            let weighting = (&first.rotation, &first.translation, mean * mean);
+            let system = ControlSystem::new(bearings, points, Some(weighting), spread, first.dirs)?;
             // Only the linearization that won the first pass: the weights change the fit, not
             // which null-space dimension describes it.
             keep_better(&mut best, system.solve(bearings, points, Some(first.guess)));
@@ -197,30 +204,17 @@ fn keep_better(best: &mut Option<Candidate>, candidate: Option<Candidate>) {
     }
 }
 
-/// The index pairs `(a, b)`, `a <= b`, of the products of the four control weights.
-const PRODUCTS: [(usize, usize); 10] = [
-    (0, 0),
-    (0, 1),
-    (0, 2),
-    (0, 3),
-    (1, 1),
-    (1, 2),
-    (1, 3),
-    (2, 2),
-    (2, 3),
-    (3, 3),
-];
-
 /// The accumulated normal equations in control-point coordinates and what is needed to turn a
 /// null vector into a pose.
 struct ControlSystem<'a> {
     spread: &'a PointSpread,
     /// Number of control directions: 3 (general) or 2 (planar).
     dirs: usize,
-    /// `blocks[a][b] = sum_i w_ia w_ib (I - f_i f_i^T)`, with `w_i = (1, alpha_i1, ..)`.
+    /// `blocks[a][b] = sum_i w_ia w_ib (I - f_i f_i^T)`, with `w_i = (1, alpha_i1, ..)`; every
+    /// block is symmetric, and `blocks[a][b] = blocks[b][a]`.
     blocks: [[Matrix3<f64>; 4]; 4],
-    /// Cholesky factor of `blocks[0][0] = sum_i (I - f_i f_i^T)`.
-    centre: Cholesky<f64, U3>,
+    /// Inverse of `blocks[0][0] = sum_i (I - f_i f_i^T)`, by its Cholesky factor.
+    centre_inverse: Matrix3<f64>,
     /// `sum_i w_ia f_i`, for the sign test.
     bearing_sums: [Vector3<f64>; 4],
 }
@@ -252,7 +246,7 @@ impl<'a> ControlSystem<'a> {
     fn new(
         bearings: &[Vector3<f64>],
         points: &[Point3<f64>],
-        weights: Option<&[f64]>,
+        weighting: Option<DepthWeighting<'_>>,
         spread: &'a PointSpread,
         dirs: usize,
     ) -> Result<Self, PnpError> {
@@ -261,52 +255,26 @@ impl<'a> ControlSystem<'a> {
         for (k, axis) in scaled_axes.iter_mut().enumerate().take(dirs) {
             *axis = spread.axes.column(k) / spread.std_devs[k];
         }
-        // Fixed-size accumulation (unrolled by the compiler): for every product w_a w_b
-        // (a <= b) the six distinct entries of the weighted projector I - f f^T.
-        let mut sums = [[0.0; 6]; 10];
-        let mut bearing_sums = [Vector3::zeros(); 4];
-        for (i, (f, x)) in bearings.iter().zip(points).enumerate() {
-            let local = x - spread.centroid;
-            let weight = weights.map_or(1.0, |w| w[i]);
-            let w = [
-                1.0,
-                scaled_axes[0].dot(&local),
-                scaled_axes[1].dot(&local),
-                scaled_axes[2].dot(&local),
-            ];
-            let projector = [
-                (1.0 - f.x * f.x) * weight,
-                -f.x * f.y * weight,
-                -f.x * f.z * weight,
-                (1.0 - f.y * f.y) * weight,
-                -f.y * f.z * weight,
-                (1.0 - f.z * f.z) * weight,
-            ];
-            for (sum, &(a, b)) in sums.iter_mut().zip(&PRODUCTS) {
-                let product = w[a] * w[b];
-                for (s, p) in sum.iter_mut().zip(&projector) {
-                    *s += product * p;
-                }
-            }
-            for (sum, wa) in bearing_sums.iter_mut().zip(&w) {
-                *sum += f * (wa * weight);
-            }
-        }
+        let frame = WhitenedFrame {
+            centroid: spread.centroid.coords,
+            scaled_axes,
+        };
+        let sums = NormalSums::accumulate(bearings, points, &frame, weighting);
         let mut blocks = [[Matrix3::zeros(); 4]; 4];
-        for (sum, &(a, b)) in sums.iter().zip(&PRODUCTS) {
-            let block = Matrix3::new(
-                sum[0], sum[1], sum[2], sum[1], sum[3], sum[4], sum[2], sum[4], sum[5],
-            );
+        for (k, &(a, b)) in PRODUCTS.iter().enumerate() {
+            let e = sums.projector_entries(k);
+            let block = Matrix3::new(e[0], e[1], e[2], e[1], e[3], e[4], e[2], e[4], e[5]);
             blocks[a][b] = block;
             blocks[b][a] = block;
         }
-        let centre = Cholesky::new(blocks[0][0])
+        let bearing_sums = sums.bearing_sums();
+        let centre_inverse = symmetric_inverse(&blocks[0][0])
             .ok_or(PnpError::Degenerate(Degeneracy::ParallelBearings))?;
         Ok(Self {
             spread,
             dirs,
             blocks,
-            centre,
+            centre_inverse,
             bearing_sums,
         })
     }
@@ -317,18 +285,16 @@ impl<'a> ControlSystem<'a> {
         for (block, d) in self.blocks[0][1..].iter().zip(dirs).take(self.dirs) {
             rhs += block * d;
         }
-        -self.centre.solve(&rhs)
+        -(self.centre_inverse * rhs)
     }
 
-    /// The reduced (Schur complement) matrix over the direction blocks. In the planar case the
-    /// unused third block is padded with a multiple of the identity above every eigenvalue of
-    /// the used part, so the smallest eigenvectors are those of the 6 x 6 system.
-    fn reduced(&self) -> [[f64; 9]; 9] {
-        let mut s = [[0.0; 9]; 9];
-        let inv_centre = self.centre.inverse();
-        for k in 0..self.dirs {
-            let left = self.blocks[k + 1][0] * inv_centre;
-            for l in k..self.dirs {
+    /// The reduced (Schur complement) matrix over the direction blocks, `3 DIRS x 3 DIRS`.
+    fn reduced<const M: usize>(&self) -> [[f64; M]; M] {
+        let mut s = [[0.0; M]; M];
+        let dirs = M / 3;
+        for k in 0..dirs {
+            let left = self.blocks[0][k + 1] * self.centre_inverse;
+            for l in k..dirs {
                 let block = self.blocks[k + 1][l + 1] - left * self.blocks[0][l + 1];
                 for i in 0..3 {
                     for j in 0..3 {
@@ -338,14 +304,21 @@ impl<'a> ControlSystem<'a> {
                 }
             }
         }
-        if self.dirs == 2 {
-            // The trace bounds every eigenvalue of a positive semi-definite matrix.
-            let pad = 1.0 + 2.0 * (0..6).map(|i| s[i][i]).sum::<f64>();
-            for (i, row) in s.iter_mut().enumerate().skip(6) {
-                row[i] = pad;
-            }
-        }
         s
+    }
+
+    /// The null-space candidates: the `KERNEL` eigenvectors of the smallest eigenvalues of the
+    /// reduced matrix (`M = 3 dirs`), with their centroid blocks.
+    fn kernel<const M: usize, const KERNEL: usize>(&self) -> Option<[ControlVector; KERNEL]> {
+        let (_, vectors) = smallest_eigenpairs::<M, KERNEL>(self.reduced::<M>())?;
+        let mut kernel = [ControlVector::zero(); KERNEL];
+        for (v, column) in kernel.iter_mut().zip(&vectors) {
+            for k in 0..self.dirs {
+                v.dirs[k] = Vector3::new(column[3 * k], column[3 * k + 1], column[3 * k + 2]);
+            }
+            v.centre = self.centre_for(&v.dirs);
+        }
+        Some(kernel)
     }
 
     /// All candidates from the null space; the one with the smallest bearing error.
@@ -356,23 +329,31 @@ impl<'a> ControlSystem<'a> {
         points: &[Point3<f64>],
         only: Option<usize>,
     ) -> Option<Candidate> {
-        let (_, vectors) = smallest_eigenpairs::<9, 4>(self.reduced())?;
-        let kernel_dim = if self.dirs == 3 { 4 } else { 3 };
         let mut kernel = [ControlVector::zero(); 4];
-        for (v, column) in kernel.iter_mut().zip(&vectors[..kernel_dim]) {
-            for k in 0..self.dirs {
-                v.dirs[k] = Vector3::new(column[3 * k], column[3 * k + 1], column[3 * k + 2]);
-            }
-            v.centre = self.centre_for(&v.dirs);
-        }
-        let betas = Betas::new(&kernel[..kernel_dim], self.dirs, &self.spread.std_devs);
+        let kernel_dim = if self.dirs == 3 {
+            kernel = self.kernel::<9, 4>()?;
+            4
+        } else {
+            kernel[..3].copy_from_slice(&self.kernel::<6, 3>()?);
+            3
+        };
+        let betas = Betas::new(&kernel, kernel_dim, self.dirs, &self.spread.std_devs);
         let mut best: Option<Candidate> = None;
-        for (guess, start) in betas.initial_guesses().iter().enumerate() {
+        let mut tried: [Option<(Beta, f64)>; 3] = [None; 3];
+        for (guess, start) in betas.initial_guesses(only).iter().enumerate() {
             let Some(start) = start else { continue };
-            if only.is_some_and(|g| g != guess) {
+            let (refined, cost) = betas.gauss_newton(*start);
+            // Different starts mostly converge to the same betas: a pose already scored is
+            // not computed again, unless this run met the constraints markedly better (on
+            // exact data a run that converged further is the exact pose).
+            if tried
+                .iter()
+                .flatten()
+                .any(|(t, t_cost)| same_betas(t, &refined) && cost >= *t_cost * (1.0 - SAME_COST))
+            {
                 continue;
             }
-            let refined = betas.gauss_newton(*start);
+            tried[guess] = Some((refined, cost));
             let mut x = ControlVector::zero();
             for (v, beta) in kernel[..kernel_dim].iter().zip(&refined) {
                 x.add_scaled(v, *beta);
@@ -418,7 +399,7 @@ impl<'a> ControlSystem<'a> {
             let axis = self.spread.axes.column(k);
             rhs += self.blocks[0][k + 1] * (rotation * axis * self.spread.std_devs[k]);
         }
-        let translation = -self.centre.solve(&rhs);
+        let translation = -(self.centre_inverse * rhs);
         let error = total_chord_error(&rotation, &translation, bearings, points);
         (error.is_finite() && translation.iter().all(|v| v.is_finite())).then_some(Candidate {
             rotation,
@@ -430,60 +411,115 @@ impl<'a> ControlSystem<'a> {
     }
 }
 
-/// Most quadratic constraints (general case: the 6 pairs of 3 directions).
-const MAX_PAIRS: usize = 6;
+/// Betas that give the same pose to within [`SAME_BETAS`] relative: a candidate already
+/// scored.
+fn same_betas(a: &Beta, b: &Beta) -> bool {
+    let scale = a.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
+    a.iter()
+        .zip(b)
+        .all(|(x, y)| (x - y).abs() <= SAME_BETAS * scale)
+}
+
+/// Relative difference under which two refined betas are one candidate: their poses differ
+/// by about this much (1e-10 rad), far below any noise, and no more than the spread of the
+/// five Gauss-Newton steps themselves (different starts typically agree to 1e-12..1e-10 on
+/// noisy data, and to round-off on exact data).
+const SAME_BETAS: f64 = 1e-10;
+
+/// A refined beta within [`SAME_BETAS`] of one already scored is scored again only if its
+/// constraint cost is lower by more than this fraction.
+const SAME_COST: f64 = 1e-6;
+
+/// Inverse of a symmetric positive definite 3 x 3 matrix by its Cholesky factor
+/// `L` (`m = L L^T`, `m^-1 = L^-T L^-1`); `None` if `m` is not positive definite.
+fn symmetric_inverse(m: &Matrix3<f64>) -> Option<Matrix3<f64>> {
+    let l00 = m[(0, 0)];
+    if l00.is_nan() || l00 <= 0.0 {
+        return None;
+    }
+    let l00 = l00.sqrt();
+    let l10 = m[(1, 0)] / l00;
+    let l20 = m[(2, 0)] / l00;
+    let d1 = m[(1, 1)] - l10 * l10;
+    if d1.is_nan() || d1 <= 0.0 {
+        return None;
+    }
+    let l11 = d1.sqrt();
+    let l21 = (m[(2, 1)] - l20 * l10) / l11;
+    let d2 = m[(2, 2)] - l20 * l20 - l21 * l21;
+    if d2.is_nan() || d2 <= 0.0 {
+        return None;
+    }
+    let l22 = d2.sqrt();
+    // L^-1, lower triangular.
+    let i00 = 1.0 / l00;
+    let i11 = 1.0 / l11;
+    let i22 = 1.0 / l22;
+    let i10 = -l10 * i00 * i11;
+    let i21 = -l21 * i11 * i22;
+    let i20 = -(l20 * i00 + l21 * i10) * i22;
+    let inverse_l = Matrix3::new(i00, 0.0, 0.0, i10, i11, 0.0, i20, i21, i22);
+    Some(inverse_l.tr_mul(&inverse_l))
+}
+
+/// The constraint pairs `(k, l)`, `k <= l`, of the three directions, in row order. A planar
+/// system uses the rows without direction 2 (their table entries and targets are zero).
+const PAIRS: [(usize, usize); 6] = [(0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)];
 
 /// The quadratic constraints `d_k . d_l = s_k^2 delta_kl` over the null-space weights.
-struct Betas<'a> {
-    kernel: &'a [ControlVector],
+struct Betas {
+    /// Null vectors used (3 or 4).
+    dim: usize,
     dirs: usize,
-    /// Right-hand sides `s_k^2 delta_kl` of the constraint pairs `(k, l)`, `k <= l`; the
-    /// first `count` are used.
-    targets: [f64; MAX_PAIRS],
-    count: usize,
+    /// Right-hand sides `s_k^2 delta_kl` of the rows (zero for unused rows).
+    targets: [f64; 6],
     /// `table[a][b][row] = u_a,k . u_b,l + u_b,k . u_a,l` for the pair `(k, l)` of `row`:
-    /// every constraint is `sum_ab beta_a beta_b table[a][b][row] / 2 = target`.
-    table: [[[f64; MAX_PAIRS]; 4]; 4],
-    std_devs: &'a Vector3<f64>,
+    /// every constraint is `sum_ab beta_a beta_b table[a][b][row] / 2 = target`. Unused rows
+    /// and null vectors are zero, so every loop runs over the full fixed sizes, the rows
+    /// innermost.
+    table: [[[f64; 6]; 4]; 4],
+    /// `|u_0,k|`: the lengths of the first null vector's directions.
+    first_lengths: [f64; 3],
+    std_devs: Vector3<f64>,
 }
 
 /// Betas for up to four null vectors (unused ones zero).
 type Beta = [f64; 4];
 
-impl<'a> Betas<'a> {
-    fn new(kernel: &'a [ControlVector], dirs: usize, std_devs: &'a Vector3<f64>) -> Self {
-        let mut pairs = [(0, 0); MAX_PAIRS];
-        let mut targets = [0.0; MAX_PAIRS];
-        let mut count = 0;
-        for k in 0..dirs {
-            for l in k..dirs {
-                pairs[count] = (k, l);
-                targets[count] = if k == l {
-                    std_devs[k] * std_devs[k]
-                } else {
-                    0.0
-                };
-                count += 1;
+impl Betas {
+    /// `kernel`: the null vectors, unused ones (beyond `dim`) and unused directions zero.
+    fn new(kernel: &[ControlVector; 4], dim: usize, dirs: usize, std_devs: &Vector3<f64>) -> Self {
+        let mut targets = [0.0; 6];
+        for (target, &(k, l)) in targets.iter_mut().zip(&PAIRS) {
+            if k == l && k < dirs {
+                *target = std_devs[k] * std_devs[k];
             }
         }
-        let mut table = [[[0.0; MAX_PAIRS]; 4]; 4];
-        for a in 0..kernel.len() {
-            for b in a..kernel.len() {
-                let (u, v) = (&kernel[a], &kernel[b]);
-                for (row, &(k, l)) in pairs[..count].iter().enumerate() {
-                    let value = u.dirs[k].dot(&v.dirs[l]) + v.dirs[k].dot(&u.dirs[l]);
-                    table[a][b][row] = value;
-                    table[b][a][row] = value;
+        // Gram matrix of all direction blocks: gram[3a + k][3b + l] = u_a,k . u_b,l.
+        let mut gram = [[0.0; 12]; 12];
+        for i in 0..12 {
+            let u = &kernel[i / 3].dirs[i % 3];
+            for j in i..12 {
+                let value = u.dot(&kernel[j / 3].dirs[j % 3]);
+                gram[i][j] = value;
+                gram[j][i] = value;
+            }
+        }
+        let mut table = [[[0.0; 6]; 4]; 4];
+        for a in 0..4 {
+            for b in 0..4 {
+                for (row, &(k, l)) in PAIRS.iter().enumerate() {
+                    table[a][b][row] = gram[3 * a + k][3 * b + l] + gram[3 * b + k][3 * a + l];
                 }
             }
         }
         Self {
-            kernel,
+            dim,
             dirs,
             targets,
-            count,
             table,
-            std_devs,
+            first_lengths: kernel[0].dirs.map(|d| d.norm()),
+            std_devs: *std_devs,
         }
     }
 
@@ -497,24 +533,26 @@ impl<'a> Betas<'a> {
     }
 
     /// Starting betas from the paper's linearization for null-space dimensions 1, 2 and 3
-    /// (3 only with six constraints).
-    fn initial_guesses(&self) -> [Option<Beta>; 3] {
+    /// (3 only with six constraints); only the one numbered `only` if given.
+    fn initial_guesses(&self, only: Option<usize>) -> [Option<Beta>; 3] {
+        let wanted = |guess: usize| only.is_none_or(|g| g == guess);
         let mut guesses = [None; 3];
         // N = 1: match the control-point distances (paper section 3.3).
-        let first = &self.kernel[0];
-        let (mut num, mut den) = (0.0, 0.0);
-        for k in 0..self.dirs {
-            let length = first.dirs[k].norm();
-            num += length * self.std_devs[k];
-            den += length * length;
+        if wanted(0) {
+            let (mut num, mut den) = (0.0, 0.0);
+            for k in 0..self.dirs {
+                let length = self.first_lengths[k];
+                num += length * self.std_devs[k];
+                den += length * length;
+            }
+            if den > 0.0 {
+                guesses[0] = Some([num / den, 0.0, 0.0, 0.0]);
+            }
         }
-        if den > 0.0 {
-            guesses[0] = Some([num / den, 0.0, 0.0, 0.0]);
-        }
-        if self.kernel.len() >= 2 {
+        if self.dim >= 2 && wanted(1) {
             guesses[1] = self.linearized_two();
         }
-        if self.kernel.len() >= 3 && self.count == MAX_PAIRS {
+        if self.dim >= 3 && self.dirs == 3 && wanted(2) {
             guesses[2] = self.linearized_three();
         }
         guesses
@@ -523,16 +561,18 @@ impl<'a> Betas<'a> {
     /// N = 2: least squares for `(beta_00, beta_01, beta_11)` (paper section 3.3).
     fn linearized_two(&self) -> Option<Beta> {
         let products = [(0, 0), (0, 1), (1, 1)];
-        let mut normal = Matrix3::zeros();
-        let mut rhs = Vector3::zeros();
-        for row in 0..self.count {
-            let coefficients =
-                Vector3::from_fn(|c, _| self.coefficient(products[c].0, products[c].1, row));
-            normal += coefficients * coefficients.transpose();
-            rhs += coefficients * self.targets[row];
+        let mut normal = [[0.0; 3]; 3];
+        let mut rhs = [0.0; 3];
+        for row in 0..6 {
+            let c = products.map(|(a, b)| self.coefficient(a, b, row));
+            for i in 0..3 {
+                for j in 0..3 {
+                    normal[i][j] += c[i] * c[j];
+                }
+                rhs[i] += c[i] * self.targets[row];
+            }
         }
-        let b = normal.lu().solve(&rhs)?;
-        let (b00, b01, b11) = (b[0], b[1], b[2]);
+        let [b00, b01, b11] = solve_linear(normal, rhs)?;
         let (beta0, beta1) = if b00 >= b11 {
             if b00.is_nan() || b00 <= 0.0 {
                 return None;
@@ -551,18 +591,19 @@ impl<'a> Betas<'a> {
 
     /// N = 3: the six products `beta_ab` (a <= b < 3) from the six constraints.
     fn linearized_three(&self) -> Option<Beta> {
-        let products = [(0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)];
-        let l = Matrix6::from_fn(|row, c| self.coefficient(products[c].0, products[c].1, row));
-        let rho = Vector6::from_column_slice(&self.targets);
-        let b = l.lu().solve(&rho)?;
-        let product = |a: usize, c: usize| {
-            let (a, c) = (a.min(c), a.max(c));
-            products
-                .iter()
-                .position(|&p| p == (a, c))
-                .map_or(0.0, |i| b[i])
-        };
-        let pivot = (0..3).max_by(|&a, &c| product(a, a).total_cmp(&product(c, c)))?;
+        // The products (0,0), (0,1), (0,2), (1,1), (1,2), (2,2): the pairs of `PAIRS`.
+        const INDEX: [[usize; 3]; 3] = [[0, 1, 2], [1, 3, 4], [2, 4, 5]];
+        let l: [[f64; 6]; 6] =
+            core::array::from_fn(|row| PAIRS.map(|(a, c)| self.coefficient(a, c, row)));
+        let b = solve_linear(l, self.targets)?;
+        let product = |a: usize, c: usize| b[INDEX[a][c]];
+        // The largest diagonal product (the last of equals).
+        let mut pivot = 0;
+        for a in 1..3 {
+            if product(a, a).total_cmp(&product(pivot, pivot)).is_ge() {
+                pivot = a;
+            }
+        }
         let diagonal = product(pivot, pivot);
         if diagonal.is_nan() || diagonal <= 0.0 {
             return None;
@@ -579,47 +620,63 @@ impl<'a> Betas<'a> {
         Some(beta)
     }
 
-    /// Residuals `d_k . d_l - target` and their Jacobian rows at `beta`, from the table.
-    /// Unused rows and betas have zero table entries and targets, so the loops run over the
-    /// full fixed sizes (which the compiler unrolls).
-    fn residuals(&self, beta: &Beta) -> ([f64; MAX_PAIRS], [Vector4<f64>; MAX_PAIRS]) {
-        let mut residuals = [0.0; MAX_PAIRS];
-        let mut jacobian = [Vector4::zeros(); MAX_PAIRS];
-        for (a, table_a) in self.table.iter().enumerate() {
+    /// Residuals `d_k . d_l - target` at `beta` and the transposed Jacobian,
+    /// `jacobian[a][row] = sum_b table[a][b][row] beta_b`.
+    #[inline]
+    fn residuals(&self, beta: &Beta) -> ([f64; 6], [[f64; 6]; 4]) {
+        let mut jacobian = [[0.0; 6]; 4];
+        for (j, table_a) in jacobian.iter_mut().zip(&self.table) {
             for (entries, beta_b) in table_a.iter().zip(beta) {
-                for (j, entry) in jacobian.iter_mut().zip(entries) {
-                    j[a] += entry * beta_b;
+                for (j, entry) in j.iter_mut().zip(entries) {
+                    *j += entry * beta_b;
                 }
             }
         }
-        for row in 0..MAX_PAIRS {
-            residuals[row] = 0.5 * jacobian[row].dot(&Vector4::from(*beta)) - self.targets[row];
+        let mut residuals = [0.0; 6];
+        for (j, beta_a) in jacobian.iter().zip(beta) {
+            for (r, j) in residuals.iter_mut().zip(j) {
+                *r += j * beta_a;
+            }
+        }
+        for (r, target) in residuals.iter_mut().zip(&self.targets) {
+            *r = 0.5 * *r - target;
         }
         (residuals, jacobian)
     }
 
     /// Gauss-Newton on all betas, minimizing the summed squared constraint residuals (paper
-    /// section 3.4); a step that does not lower the residual ends it.
-    fn gauss_newton(&self, mut beta: Beta) -> Beta {
-        let dim = self.kernel.len();
+    /// section 3.4); a step that does not lower the residual ends it. Returns the betas and
+    /// their summed squared residual.
+    fn gauss_newton(&self, mut beta: Beta) -> (Beta, f64) {
         let (mut r, mut jacobian) = self.residuals(&beta);
         let mut cost: f64 = r.iter().map(|v| v * v).sum();
         for _ in 0..BETA_GN_ITERATIONS {
-            let mut normal = Matrix4::zeros();
-            let mut gradient = Vector4::zeros();
-            for row in 0..MAX_PAIRS {
-                normal += jacobian[row] * jacobian[row].transpose();
-                gradient += jacobian[row] * r[row];
-            }
+            // The normal equations J^T J step = -J^T r, the upper triangle packed by rows.
+            let dot =
+                |u: &[f64; 6], v: &[f64; 6]| -> f64 { u.iter().zip(v).map(|(x, y)| x * y).sum() };
+            let [j0, j1, j2, j3] = &jacobian;
+            let mut normal = [
+                dot(j0, j0),
+                dot(j0, j1),
+                dot(j0, j2),
+                dot(j0, j3),
+                dot(j1, j1),
+                dot(j1, j2),
+                dot(j1, j3),
+                dot(j2, j2),
+                dot(j2, j3),
+                dot(j3, j3),
+            ];
+            let gradient = [-dot(j0, &r), -dot(j1, &r), -dot(j2, &r), -dot(j3, &r)];
             // Unused betas stay zero.
-            for a in dim..4 {
-                normal[(a, a)] = 1.0;
+            if self.dim < 4 {
+                normal[9] = 1.0;
             }
-            let Some(step) = normal.cholesky().map(|c| c.solve(&(-gradient))) else {
+            let Some(step) = cholesky_solve_4(&normal, &gradient) else {
                 break;
             };
             let mut trial = beta;
-            for (t, s) in trial.iter_mut().zip(step.iter()) {
+            for (t, s) in trial.iter_mut().zip(&step) {
                 *t += s;
             }
             let (trial_r, trial_jacobian) = self.residuals(&trial);
@@ -636,6 +693,6 @@ impl<'a> Betas<'a> {
                 break;
             }
         }
-        beta
+        (beta, cost)
     }
 }

@@ -5,7 +5,7 @@
 //! Crystallographica A32, 1976; S. Umeyama, "Least-squares estimation of transformation
 //! parameters between two point patterns", IEEE TPAMI 13(4), 1991.
 
-use nalgebra::{Isometry3, Matrix3, Point3, Rotation3, Translation3, UnitQuaternion, Vector3};
+use nalgebra::{Isometry3, Matrix3, Rotation3, Translation3, UnitQuaternion, Vector3};
 
 /// Squared chord between the unit bearing `f` and the direction of the camera-frame point `p`:
 /// `|p/|p| - f|^2 = 2 - 2 cos(angle) = 4 sin^2(angle / 2)`. Increases monotonically with the
@@ -16,8 +16,9 @@ pub(crate) fn chord_squared(f: &Vector3<f64>, p: &Vector3<f64>) -> f64 {
     if norm == 0.0 {
         4.0
     } else {
-        // NaN for a non-finite point, so a broken pose never scores well.
-        (p / norm - f).norm_squared()
+        // NaN for a non-finite point, so a broken pose never scores well. One division, not
+        // three: the reciprocal is within an ulp of the quotients.
+        (p * (1.0 / norm) - f).norm_squared()
     }
 }
 
@@ -55,22 +56,47 @@ pub(crate) fn rotation_from_correlation(h: &Matrix3<f64>) -> Option<Matrix3<f64>
 /// matrix is then within a condition number of about 1e2 of singular or reflecting).
 const POLAR_MIN_DETERMINANT: f64 = 1e-6;
 
-/// Scaled Newton iteration `X <- (g X + X^-T / g) / 2`, `g = sqrt(|X^-1|_F / |X|_F)`.
+/// Scaled Newton iteration `X <- (g X + X^-T / g) / 2`, `g = sqrt(|X^-1|_F / |X|_F)`, with
+/// the scaling dropped (`g = 1`) once the steps are small (Higham's recommendation: near
+/// convergence the optimal scale is 1 to first order, and the unscaled step skips two square
+/// roots and a division). `X^-T` is the cofactor matrix over the determinant; the cofactor
+/// columns of a 3 x 3 matrix are the cross products of its columns.
 fn polar_rotation(h: &Matrix3<f64>) -> Option<Matrix3<f64>> {
     let mut x = *h;
+    let mut scaled = true;
     for _ in 0..POLAR_MAX_ITERATIONS {
-        let inverse = x.try_inverse()?;
-        let gamma = (inverse.norm() / x.norm()).sqrt();
-        let next = (x * gamma + inverse.transpose() / gamma) * 0.5;
-        let change = (next - x).norm();
+        let (cof, det) = cofactors(&x)?;
+        let next = if scaled {
+            let x_norm = x.norm_squared().sqrt();
+            let inverse_norm = cof.norm_squared().sqrt() / det.abs();
+            let gamma = (inverse_norm / x_norm).sqrt();
+            x * (0.5 * gamma) + cof * (0.5 / (gamma * det))
+        } else {
+            x * 0.5 + cof * (0.5 / det)
+        };
+        let change = (next - x).norm_squared();
         x = next;
-        if change <= 1e-14 {
+        if change <= 1e-28 {
             // Quadratic convergence: one more step reaches round-off.
-            let inverse = x.try_inverse()?;
-            return Some((x + inverse.transpose()) * 0.5);
+            let (cof, det) = cofactors(&x)?;
+            return Some(x * 0.5 + cof * (0.5 / det));
         }
+        scaled &= change > POLAR_UNSCALED;
     }
     None
+}
+
+/// Squared Frobenius step below which the polar iteration stops scaling (steps of 1e-2).
+const POLAR_UNSCALED: f64 = 1e-4;
+
+/// The cofactor matrix of `x` (so `x^-T = cofactors / det`) and the determinant; `None` for a
+/// singular matrix.
+#[inline]
+fn cofactors(x: &Matrix3<f64>) -> Option<(Matrix3<f64>, f64)> {
+    let (c0, c1, c2) = (x.column(0), x.column(1), x.column(2));
+    let cofactors = Matrix3::from_columns(&[c1.cross(&c2), c2.cross(&c0), c0.cross(&c1)]);
+    let det = c0.dot(&cofactors.column(0));
+    (det != 0.0).then_some((cofactors, det))
 }
 
 /// Newton polar iterations allowed (quadratic convergence: about six are used).
@@ -106,18 +132,4 @@ pub(crate) fn isometry_from(rotation: &Matrix3<f64>, translation: &Vector3<f64>)
     let rotation =
         UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(*rotation));
     Isometry3::from_parts(Translation3::from(*translation), rotation)
-}
-
-/// Sum over all correspondences of the squared chord error of a pose (see [`chord_squared`]).
-pub(crate) fn total_chord_error(
-    rotation: &Matrix3<f64>,
-    translation: &Vector3<f64>,
-    bearings: &[Vector3<f64>],
-    points: &[Point3<f64>],
-) -> f64 {
-    bearings
-        .iter()
-        .zip(points)
-        .map(|(f, x)| chord_squared(f, &(rotation * x.coords + translation)))
-        .sum()
 }

@@ -3,11 +3,13 @@
 #[cfg(feature = "camera-models")]
 mod camera_threshold;
 mod epnp;
+mod epnp_sums;
 mod error;
 mod geometry;
 mod p3p;
 mod ransac;
 mod refine;
+mod small_linear;
 mod symmetric_eigen;
 mod threshold;
 mod validate;

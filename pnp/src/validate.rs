@@ -45,20 +45,38 @@ pub(crate) fn check_correspondences(
         });
     }
     for (index, (f, x)) in bearings.iter().zip(points).enumerate() {
-        if !f.iter().all(|v| v.is_finite()) {
-            return Err(PnpError::NonFiniteBearing { index });
+        // One branch per correspondence on the common path: `(x + y + z) * 0` is zero exactly
+        // when the three are finite, and a squared norm inside `UNIT_SQUARED_BAND` means a
+        // norm inside the tolerance. Anything else takes the exact, ordered checks below.
+        let finite = (x.x + x.y + x.z) * 0.0 == 0.0;
+        if !(finite && (f.norm_squared() - 1.0).abs() <= UNIT_SQUARED_BAND) {
+            check_one(index, f, x)?;
         }
-        if !x.coords.iter().all(|v| v.is_finite()) {
-            return Err(PnpError::NonFinitePoint { index });
-        }
-        let norm = f.norm();
-        if (norm - 1.0).abs() > UNIT_NORM_TOLERANCE {
-            return Err(PnpError::NonUnitBearing {
-                index,
-                norm,
-                tolerance: UNIT_NORM_TOLERANCE,
-            });
-        }
+    }
+    Ok(())
+}
+
+/// A squared norm within this of 1 puts the norm within [`UNIT_NORM_TOLERANCE`] of 1:
+/// `(1 ± t)^2 = 1 ± 2t + t^2`, so `2t - t^2` less a margin for the rounding of the squared
+/// norm. Bearings outside it are checked on their norm itself.
+const UNIT_SQUARED_BAND: f64 = 2.0 * UNIT_NORM_TOLERANCE * (1.0 - UNIT_NORM_TOLERANCE) - 1e-15;
+
+/// The checks of one correspondence, in the order they are reported.
+#[cold]
+fn check_one(index: usize, f: &Vector3<f64>, x: &Point3<f64>) -> Result<(), PnpError> {
+    if !f.iter().all(|v| v.is_finite()) {
+        return Err(PnpError::NonFiniteBearing { index });
+    }
+    if !x.coords.iter().all(|v| v.is_finite()) {
+        return Err(PnpError::NonFinitePoint { index });
+    }
+    let norm = f.norm();
+    if (norm - 1.0).abs() > UNIT_NORM_TOLERANCE {
+        return Err(PnpError::NonUnitBearing {
+            index,
+            norm,
+            tolerance: UNIT_NORM_TOLERANCE,
+        });
     }
     Ok(())
 }
@@ -142,4 +160,46 @@ pub(crate) fn point_spread(points: &[Point3<f64>]) -> Result<PointSpread, PnpErr
         axes,
         std_devs,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use nalgebra::{Point3, Vector3};
+    use rand::{RngExt, SeedableRng};
+    use rand_chacha::ChaCha8Rng;
+
+    use super::{UNIT_NORM_TOLERANCE, check_correspondences, check_one};
+
+    /// The one-branch screen of `check_correspondences` (a squared-norm band and a finiteness
+    /// trick) decides exactly as the ordered checks of `check_one` do, around both edges of
+    /// the unit-norm tolerance and for non-finite coordinates.
+    #[test]
+    fn fast_screen_agrees_with_the_exact_checks() {
+        let mut rng = ChaCha8Rng::seed_from_u64(14);
+        let point = Point3::new(1.0, -2.0, 3.0);
+        for _ in 0..20_000 {
+            let direction = Vector3::from_fn(|_, _| rng.random_range(-1.0..1.0)).normalize();
+            // Half the samples within 1e-12 of an edge of the tolerance, half anywhere in
+            // twice its width.
+            let offset = if rng.random::<bool>() {
+                let edge = if rng.random::<bool>() { 1.0 } else { -1.0 };
+                edge * (1.0 + rng.random_range(-1e-6..1e-6))
+            } else {
+                rng.random_range(-2.0..2.0)
+            };
+            let norm = 1.0 + offset * UNIT_NORM_TOLERANCE;
+            let f = direction * norm;
+            let screened = check_correspondences("test", 1, &[f], &[point]);
+            assert_eq!(screened, check_one(0, &f, &point), "|f| = {}", f.norm());
+        }
+        let unit = Vector3::new(0.0, 0.6, 0.8);
+        for bad in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY, 1e308] {
+            let f = Vector3::new(bad, 0.6, 0.8);
+            let x = Point3::new(bad, 1e308, 0.0);
+            for (f, x) in [(f, point), (unit, x), (f, x)] {
+                let screened = check_correspondences("test", 1, &[f], &[x]);
+                assert_eq!(screened, check_one(0, &f, &x), "{f:?} {x:?}");
+            }
+        }
+    }
 }
