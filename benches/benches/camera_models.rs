@@ -14,6 +14,7 @@
 use std::hint::black_box;
 
 use criterion::{Criterion, Throughput, criterion_group};
+use ibc_benches::thread_cpu_ns;
 use ibc_camera_models::{CameraModel, KannalaBrandt, PinholeRadtan, Unified};
 use nalgebra::{Vector2, Vector3};
 
@@ -242,17 +243,6 @@ fn set_params(c: &mut Criterion) {
         b.iter(|| mei.set_params(black_box(&mp)).unwrap());
     });
     g.finish();
-}
-
-/// CPU time of the calling thread in nanoseconds, from `/proc/thread-self/schedstat` (Linux);
-/// `None` where unavailable. Updated at scheduler ticks, so only long spans are meaningful.
-fn thread_cpu_ns() -> Option<f64> {
-    std::fs::read_to_string("/proc/thread-self/schedstat")
-        .ok()?
-        .split_whitespace()
-        .next()?
-        .parse()
-        .ok()
 }
 
 /// CPU time per item of `f` over `items`, repeated until a quarter second of CPU time has

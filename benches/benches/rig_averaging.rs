@@ -10,7 +10,7 @@
 use std::hint::black_box;
 
 use criterion::{BenchmarkId, Criterion, criterion_group};
-use ibc_benches::bench_rng;
+use ibc_benches::{bench_rng, thread_cpu_ns};
 use ibc_rig_averaging::{
     ImageScorer, Observation, ObservationScorer, RigInitOptions, RobustOptions, initialize_rig,
     quaternion_mean, robust_quaternion_mean,
@@ -223,17 +223,6 @@ fn bench_rig_initialization(c: &mut Criterion) {
         })
     });
     group.finish();
-}
-
-/// CPU time of the calling thread in nanoseconds, from `/proc/thread-self/schedstat` (Linux);
-/// `None` where unavailable. Updated at scheduler ticks, so only long spans are meaningful.
-fn thread_cpu_ns() -> Option<f64> {
-    std::fs::read_to_string("/proc/thread-self/schedstat")
-        .ok()?
-        .split_whitespace()
-        .next()?
-        .parse()
-        .ok()
 }
 
 /// On the shared machines parallel builds inflate wall time several-fold, so before the

@@ -15,3 +15,16 @@ pub const BENCH_SEED: u64 = 0x1bc_5eed;
 pub fn bench_rng(stream: u64) -> ChaCha8Rng {
     ChaCha8Rng::seed_from_u64(BENCH_SEED.wrapping_add(stream))
 }
+
+/// CPU time of the calling thread in nanoseconds, from `/proc/thread-self/schedstat` (Linux);
+/// `None` where unavailable. Updated at scheduler ticks, so only long spans are meaningful.
+/// On the shared machines parallel builds inflate wall time, and a thread's CPU time moves far
+/// less with the load, so benches print it beside criterion's wall-clock figures.
+pub fn thread_cpu_ns() -> Option<f64> {
+    std::fs::read_to_string("/proc/thread-self/schedstat")
+        .ok()?
+        .split_whitespace()
+        .next()?
+        .parse()
+        .ok()
+}
