@@ -173,21 +173,24 @@ pub(crate) fn solve(
     {
         // The rows of point i carry the factor |p_i| (|f x p| = |p| sin(angle)); dividing it
         // out with the first pass's depths turns the algebraic error into the angular one:
-        // weight (mean depth / depth)^2, the depths recomputed where the weights are summed.
-        let mut sum = 0.0;
-        let mut positive = true;
-        for x in points {
-            let depth = (first.rotation * x.coords + first.translation).norm();
-            positive &= depth > 0.0;
-            sum += depth;
-        }
-        let mean = sum / points.len() as f64;
-        if positive && mean.is_finite() {
-            let weighting = (&first.rotation, &first.translation, mean * mean);
-            let system = ControlSystem::new(bearings, points, Some(weighting), spread, first.dirs)?;
-            // Only the linearization that won the first pass: the weights change the fit, not
-            // which null-space dimension describes it.
-            keep_better(&mut best, system.solve(bearings, points, Some(first.guess)));
+        // weight mean_squared / depth^2, the depths computed where the weights are summed.
+        // The scale `mean_squared` (the mean squared depth, `|R c + t|^2` at the centroid `c`
+        // plus the scatter `sum_k s_k^2`) only keeps the sums near unit size: a common factor
+        // of all weights leaves the null space, the translation and the sign test unchanged.
+        let centre = first.rotation * spread.centroid.coords + first.translation;
+        let mean_squared = centre.norm_squared() + spread.std_devs.norm_squared();
+        if mean_squared > 0.0 && mean_squared.is_finite() {
+            let weighting = (&first.rotation, &first.translation, mean_squared);
+            // A point at the camera centre has an infinite weight: the centroid block is then
+            // not finite, has no Cholesky factor and the system is refused. The first pass
+            // stands then, as it does for any failure of the second.
+            if let Ok(system) =
+                ControlSystem::new(bearings, points, Some(weighting), spread, first.dirs)
+            {
+                // Only the linearization that won the first pass: the weights change the fit,
+                // not which null-space dimension describes it.
+                keep_better(&mut best, system.solve(bearings, points, Some(first.guess)));
+            }
         }
     }
     best.ok_or(PnpError::Numerical(

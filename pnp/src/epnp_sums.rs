@@ -53,7 +53,8 @@ pub(crate) struct NormalSums {
     bearings: [[f64; 3]; 4],
 }
 
-/// `(rotation, translation, mean^2)`: the weight of a point is `mean^2 / |R X + t|^2`.
+/// `(rotation, translation, scale)`: the weight of a point is `scale / |R X + t|^2` (EPnP
+/// passes the mean squared depth as the scale).
 pub(crate) type DepthWeighting<'a> = (&'a Matrix3<f64>, &'a Vector3<f64>, f64);
 
 impl NormalSums {
@@ -105,8 +106,10 @@ impl NormalSums {
 /// entry is broadcast against them. Eighteen 4-lane accumulators do not fit the sixteen
 /// vector registers, so the rows go in two passes of three (nine accumulators each, kept in
 /// registers); the second pass also sums the bearings (three more accumulators, lane `a`
-/// holding `w_a weight f`). Every lane computes the same products and sums them in the same
-/// order as the portable loop.
+/// holding `w_a weight f`). The per-correspondence set-up (whitening, projector entries,
+/// products) runs four correspondences to a vector, one per lane, and a 4 x 4 transpose turns
+/// the products into the per-correspondence vectors of the sweeps. Every lane computes the
+/// same products and sums them in the same order as the portable loop.
 ///
 /// # Safety
 /// The CPU must support AVX.
@@ -119,47 +122,53 @@ unsafe fn accumulate_avx(
     weight: impl Fn(&Point3<f64>) -> f64,
 ) -> NormalSums {
     use core::arch::x86_64::{
-        __m256d, _mm256_add_pd, _mm256_broadcast_sd, _mm256_mul_pd, _mm256_set_pd,
-        _mm256_setzero_pd, _mm256_storeu_pd,
+        __m256d, _mm256_add_pd, _mm256_broadcast_sd, _mm256_mul_pd, _mm256_setzero_pd,
+        _mm256_storeu_pd,
     };
-    let c = frame.centroid;
-    let axes = frame.scaled_axes.map(|a| [a.x, a.y, a.z]);
     let zero = _mm256_setzero_pd();
     let mut acc: [[__m256d; 3]; 6] = [[zero; 3]; 6];
     // bearing[j] lane a: sum_i (w_ia weight_i) f_ij.
     let mut bearing: [__m256d; 3] = [zero; 3];
-    // Per chunk of correspondences: their product vectors, projector entries, bearing
-    // coordinates and `W weight`, computed once and then swept twice.
+    // Per chunk of correspondences: their product vectors, projector entries (by entry),
+    // bearing coordinates (by coordinate), weights and `W weight`, computed once and then
+    // swept twice.
     let mut products = [[zero; 3]; CHUNK];
-    let mut entries = [[0.0; 6]; CHUNK];
-    let mut coordinates = [[0.0; 3]; CHUNK];
+    let mut entries = [[0.0; CHUNK]; 6];
+    let mut coordinates = [[0.0; CHUNK]; 3];
+    let mut weights = [0.0; CHUNK];
     let mut scales = [zero; CHUNK];
     for (chunk_f, chunk_x) in bearings.chunks(CHUNK).zip(points.chunks(CHUNK)) {
         let len = chunk_f.len().min(chunk_x.len());
-        for (i, (f, x)) in chunk_f.iter().zip(chunk_x).enumerate() {
-            let weight = weight(x);
-            let [w1, w2, w3] = whitened(&c, &axes, x);
-            // Lanes low to high: (0,0) (0,1) (0,2) (0,3) | (1,1) (1,2) (1,3) (2,2) |
-            // (2,3) (3,3) 0 0; w0 = 1, so the first four are W itself (1 * w_b = w_b).
-            let p0 = _mm256_set_pd(w3, w2, w1, 1.0);
-            let p1 = _mm256_mul_pd(_mm256_set_pd(w2, w1, w1, w1), _mm256_set_pd(w2, w3, w2, w1));
-            let p2 = _mm256_mul_pd(
-                _mm256_set_pd(0.0, 0.0, w3, w2),
-                _mm256_set_pd(0.0, 0.0, w3, w3),
-            );
-            products[i] = [p0, p1, p2];
-            entries[i] = weighted_projector(f, weight);
-            coordinates[i] = [f.x, f.y, f.z];
-            // Lane a: w_a * weight.
-            scales[i] = _mm256_mul_pd(p0, _mm256_set_pd(weight, weight, weight, weight));
+        for (w, x) in weights.iter_mut().zip(chunk_x) {
+            *w = weight(x);
+        }
+        let mut chunk = Chunk {
+            products: &mut products,
+            entries: &mut entries,
+            coordinates: &mut coordinates,
+            scales: &mut scales,
+        };
+        // SAFETY: the CPU supports AVX (the caller's guarantee).
+        unsafe {
+            if len == CHUNK {
+                prepare_chunk::<false>(chunk_f, chunk_x, frame, &weights, &mut chunk);
+            } else {
+                prepare_chunk::<true>(
+                    &chunk_f[..len],
+                    &chunk_x[..len],
+                    frame,
+                    &weights,
+                    &mut chunk,
+                );
+            }
         }
         // Two sweeps of three rows: nine accumulators each, held in registers.
         for half in 0..2 {
             let mut rows: [[__m256d; 3]; 3] = [acc[3 * half], acc[3 * half + 1], acc[3 * half + 2]];
             for i in 0..len {
                 let [p0, p1, p2] = products[i];
-                for (row, entry) in rows.iter_mut().zip(&entries[i][3 * half..]) {
-                    let e = _mm256_broadcast_sd(entry);
+                for (row, entry) in rows.iter_mut().zip(&entries[3 * half..]) {
+                    let e = _mm256_broadcast_sd(&entry[i]);
                     row[0] = _mm256_add_pd(row[0], _mm256_mul_pd(p0, e));
                     row[1] = _mm256_add_pd(row[1], _mm256_mul_pd(p1, e));
                     row[2] = _mm256_add_pd(row[2], _mm256_mul_pd(p2, e));
@@ -168,10 +177,10 @@ unsafe fn accumulate_avx(
             acc[3 * half..3 * half + 3].copy_from_slice(&rows);
         }
         for i in 0..len {
-            for (sum, coordinate) in bearing.iter_mut().zip(&coordinates[i]) {
+            for (sum, coordinate) in bearing.iter_mut().zip(&coordinates) {
                 *sum = _mm256_add_pd(
                     *sum,
-                    _mm256_mul_pd(_mm256_broadcast_sd(coordinate), scales[i]),
+                    _mm256_mul_pd(_mm256_broadcast_sd(&coordinate[i]), scales[i]),
                 );
             }
         }
@@ -201,29 +210,183 @@ unsafe fn accumulate_avx(
     }
 }
 
-/// Correspondences per chunk of the AVX sums: 1.7 KB of stack, small enough to be cleared
-/// with a few vector stores; reloading the accumulators costs little per eight.
+/// The per-chunk arrays of [`accumulate_avx`]: product vectors, projector entries (by
+/// entry), bearing coordinates (by coordinate) and `W weight`, by correspondence.
 #[cfg(target_arch = "x86_64")]
-const CHUNK: usize = 8;
+struct Chunk<'a> {
+    products: &'a mut [[core::arch::x86_64::__m256d; 3]; CHUNK],
+    entries: &'a mut [[f64; CHUNK]; 6],
+    coordinates: &'a mut [[f64; CHUNK]; 3],
+    scales: &'a mut [core::arch::x86_64::__m256d; CHUNK],
+}
 
-/// `mean^2 / |R X + t|^2`, written out (nalgebra's generic product does not unroll here).
+/// The set-up of one chunk of [`accumulate_avx`] (whitening, projector entries, products),
+/// four correspondences to a vector, one per lane; a 4 x 4 transpose turns the products into
+/// the per-correspondence vectors of the sweeps. Kept out of line so that its constants do
+/// not take the accumulators' registers in the sweeps.
+///
+/// # Safety
+/// The CPU must support AVX.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx")]
+#[inline(never)]
+unsafe fn prepare_chunk<const SHORT: bool>(
+    block_f: &[Vector3<f64>],
+    block_x: &[Point3<f64>],
+    frame: &WhitenedFrame,
+    weights: &[f64; CHUNK],
+    chunk: &mut Chunk<'_>,
+) {
+    use core::arch::x86_64::{
+        _mm256_add_pd, _mm256_broadcast_sd, _mm256_loadu_pd, _mm256_mul_pd, _mm256_set_pd,
+        _mm256_set1_pd, _mm256_setzero_pd, _mm256_storeu_pd, _mm256_sub_pd, _mm256_xor_pd,
+    };
+    let c = frame.centroid;
+    let centre = [c.x, c.y, c.z].map(|v| _mm256_set1_pd(v));
+    let mut axes = [[_mm256_setzero_pd(); 3]; 3];
+    for (lanes, axis) in axes.iter_mut().zip(&frame.scaled_axes) {
+        for (lane, v) in lanes.iter_mut().zip(axis.iter()) {
+            *lane = _mm256_set1_pd(*v);
+        }
+    }
+    let zero = _mm256_setzero_pd();
+    let one = _mm256_set1_pd(1.0);
+    // Flips the sign bit only: exact negation, as `-x` in the portable path.
+    let sign = _mm256_set1_pd(-0.0);
+    let len = if SHORT {
+        block_f.len().min(block_x.len()).min(CHUNK)
+    } else {
+        CHUNK
+    };
+    let (block_f, block_x) = (&block_f[..len], &block_x[..len]);
+    let last = len.saturating_sub(1);
+    for base in (0..len).step_by(4) {
+        // In a short chunk, lanes past the end repeat the last correspondence (with a stale
+        // weight): computed, never summed.
+        let index = if SHORT {
+            [
+                base,
+                (base + 1).min(last),
+                (base + 2).min(last),
+                (base + 3).min(last),
+            ]
+        } else {
+            [base, base + 1, base + 2, base + 3]
+        };
+        macro_rules! lanes {
+            ($block:ident . $field:ident) => {
+                _mm256_set_pd(
+                    $block[index[3]].$field,
+                    $block[index[2]].$field,
+                    $block[index[1]].$field,
+                    $block[index[0]].$field,
+                )
+            };
+        }
+        // Whitened coordinates w_k = (a_k0 lx + a_k1 ly) + a_k2 lz, as `whitened`.
+        let local = [
+            _mm256_sub_pd(lanes!(block_x.x), centre[0]),
+            _mm256_sub_pd(lanes!(block_x.y), centre[1]),
+            _mm256_sub_pd(lanes!(block_x.z), centre[2]),
+        ];
+        let mut w = [zero; 3];
+        for (wk, a) in w.iter_mut().zip(&axes) {
+            *wk = _mm256_add_pd(
+                _mm256_add_pd(_mm256_mul_pd(a[0], local[0]), _mm256_mul_pd(a[1], local[1])),
+                _mm256_mul_pd(a[2], local[2]),
+            );
+        }
+        // Projector entries, as `weighted_projector`.
+        let (fx, fy, fz) = (lanes!(block_f.x), lanes!(block_f.y), lanes!(block_f.z));
+        // SAFETY: `base + 4 <= CHUNK`: four f64 to read.
+        let wt = unsafe { _mm256_loadu_pd(weights.as_ptr().add(base)) };
+        let (minus_fx, minus_fy) = (_mm256_xor_pd(fx, sign), _mm256_xor_pd(fy, sign));
+        let projector = [
+            _mm256_mul_pd(_mm256_sub_pd(one, _mm256_mul_pd(fx, fx)), wt),
+            _mm256_mul_pd(_mm256_mul_pd(minus_fx, fy), wt),
+            _mm256_mul_pd(_mm256_mul_pd(minus_fx, fz), wt),
+            _mm256_mul_pd(_mm256_sub_pd(one, _mm256_mul_pd(fy, fy)), wt),
+            _mm256_mul_pd(_mm256_mul_pd(minus_fy, fz), wt),
+            _mm256_mul_pd(_mm256_sub_pd(one, _mm256_mul_pd(fz, fz)), wt),
+        ];
+        for (row, v) in chunk.entries.iter_mut().zip(&projector) {
+            // SAFETY: `base + 4 <= CHUNK`: four f64 to write.
+            unsafe { _mm256_storeu_pd(row.as_mut_ptr().add(base), *v) };
+        }
+        for (row, v) in chunk.coordinates.iter_mut().zip([fx, fy, fz]) {
+            // SAFETY: `base + 4 <= CHUNK`: four f64 to write.
+            unsafe { _mm256_storeu_pd(row.as_mut_ptr().add(base), v) };
+        }
+        // The products by correspondence. Lanes low to high: (0,0) (0,1) (0,2) (0,3) |
+        // (1,1) (1,2) (1,3) (2,2) | (2,3) (3,3) 0 0; w0 = 1, so the first four are W
+        // itself (1 * w_b = w_b).
+        let [w1, w2, w3] = w;
+        let p0 = transpose(one, w1, w2, w3);
+        let p1 = transpose(
+            _mm256_mul_pd(w1, w1),
+            _mm256_mul_pd(w1, w2),
+            _mm256_mul_pd(w1, w3),
+            _mm256_mul_pd(w2, w2),
+        );
+        let p2 = transpose(_mm256_mul_pd(w2, w3), _mm256_mul_pd(w3, w3), zero, zero);
+        for lane in 0..4 {
+            chunk.products[base + lane] = [p0[lane], p1[lane], p2[lane]];
+            // Lane a: w_a * weight.
+            chunk.scales[base + lane] =
+                _mm256_mul_pd(p0[lane], _mm256_broadcast_sd(&weights[base + lane]));
+        }
+    }
+}
+
+/// The 4 x 4 transpose: lane `l` of result `k` is lane `k` of argument `l`.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx")]
+#[inline]
+fn transpose(
+    r0: core::arch::x86_64::__m256d,
+    r1: core::arch::x86_64::__m256d,
+    r2: core::arch::x86_64::__m256d,
+    r3: core::arch::x86_64::__m256d,
+) -> [core::arch::x86_64::__m256d; 4] {
+    use core::arch::x86_64::{_mm256_permute2f128_pd, _mm256_unpackhi_pd, _mm256_unpacklo_pd};
+    // (r0_0, r1_0, r0_2, r1_2), (r0_1, r1_1, r0_3, r1_3), and the same of r2, r3.
+    let t0 = _mm256_unpacklo_pd(r0, r1);
+    let t1 = _mm256_unpackhi_pd(r0, r1);
+    let t2 = _mm256_unpacklo_pd(r2, r3);
+    let t3 = _mm256_unpackhi_pd(r2, r3);
+    [
+        _mm256_permute2f128_pd::<0x20>(t0, t2),
+        _mm256_permute2f128_pd::<0x20>(t1, t3),
+        _mm256_permute2f128_pd::<0x31>(t0, t2),
+        _mm256_permute2f128_pd::<0x31>(t1, t3),
+    ]
+}
+
+/// Correspondences per chunk of the AVX sums (a multiple of the four lanes): 3.3 KB of stack;
+/// reloading the accumulators costs little per sixteen. Sixteen rather than eight also keeps
+/// the compiler from unrolling the sweeps completely, which would spill their accumulators.
+#[cfg(target_arch = "x86_64")]
+const CHUNK: usize = 16;
+
+/// `scale / |R X + t|^2`, written out (nalgebra's generic product does not unroll here).
 #[inline(always)]
 fn depth_weight(weighting: &DepthWeighting<'_>, x: &Point3<f64>) -> f64 {
-    let (r, t, mean_squared) = *weighting;
+    let (r, t, scale) = *weighting;
     let [px, py, pz] = transform(r, t, x);
-    mean_squared / (px * px + py * py + pz * pz)
+    scale / (px * px + py * py + pz * pz)
 }
 
 /// The whitened coordinates `(w1, w2, w3)` of `x` (`w0 = 1`), with the axes as plain arrays
-/// (nalgebra's generic dot products do not unroll in these loops). Both paths use this.
+/// (nalgebra's generic dot products do not unroll in these loops). The AVX path evaluates the
+/// same expression, in the same order, four correspondences at a time.
 #[inline(always)]
 fn whitened(c: &Vector3<f64>, axes: &[[f64; 3]; 3], x: &Point3<f64>) -> [f64; 3] {
     let (lx, ly, lz) = (x.x - c.x, x.y - c.y, x.z - c.z);
     axes.map(|a| a[0] * lx + a[1] * ly + a[2] * lz)
 }
 
-/// The six distinct entries (`xx, xy, xz, yy, yz, zz`) of `weight (I - f f^T)`. Both paths
-/// use this.
+/// The six distinct entries (`xx, xy, xz, yy, yz, zz`) of `weight (I - f f^T)`. The AVX path
+/// evaluates the same expressions, in the same order, four correspondences at a time.
 #[inline(always)]
 fn weighted_projector(f: &Vector3<f64>, weight: f64) -> [f64; 6] {
     let (fx, fy, fz) = (f.x, f.y, f.z);
@@ -446,7 +609,7 @@ mod tests {
     #[test]
     fn avx_and_portable_sums_are_bit_identical() {
         let mut rng = ChaCha8Rng::seed_from_u64(5);
-        for n in [4usize, 7, 100] {
+        for n in [4usize, 7, 16, 17, 100] {
             let bearings: Vec<Vector3<f64>> = (0..n)
                 .map(|_| {
                     Vector3::new(
