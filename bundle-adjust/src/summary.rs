@@ -178,65 +178,32 @@ impl Summary {
     #[must_use]
     pub fn report(&self) -> String {
         let t = &self.times;
-        let mut s = String::new();
-        s.push_str(&format!(
-            "Residual blocks          {}\n",
-            self.num_residual_blocks
-        ));
-        s.push_str(&format!(
-            "Eliminated unknowns      {}\n",
-            self.num_eliminated
-        ));
-        s.push_str(&format!("Reduced unknowns         {}\n", self.num_reduced));
-        s.push_str(&format!(
-            "Linear solver            {}\n",
-            self.linear_solver.name()
-        ));
-        s.push_str(&format!("Threads                  {}\n", self.num_threads));
-        s.push_str(&format!(
-            "Initial cost             {:.6e}\n",
-            self.initial_cost
-        ));
-        s.push_str(&format!(
-            "Final cost               {:.6e}\n",
-            self.final_cost
-        ));
-        s.push_str(&format!("Iterations               {}\n", self.iterations));
-        s.push_str(&format!(
-            "Accepted steps           {}\n",
-            self.accepted_iterations
-        ));
-        s.push_str(&format!(
-            "Linear solves            {}\n",
-            self.linear_solves
-        ));
-        s.push_str(&format!(
-            "Preprocessing            {:.4} s\n",
-            t.preprocessing
-        ));
-        s.push_str(&format!(
-            "Residual evaluation      {:.4} s\n",
-            t.residual_evaluation
-        ));
-        s.push_str(&format!(
-            "Jacobian evaluation      {:.4} s\n",
-            t.jacobian_evaluation
-        ));
-        s.push_str(&format!(
-            "Schur elimination        {:.4} s\n",
-            t.schur_elimination
-        ));
-        s.push_str(&format!(
-            "Reduced solve            {:.4} s\n",
-            t.reduced_solve
-        ));
-        s.push_str(&format!(
-            "Back substitution        {:.4} s\n",
-            t.back_substitution
-        ));
-        s.push_str(&format!("Other                    {:.4} s\n", t.other));
-        s.push_str(&format!("Total                    {:.4} s\n", t.total));
-        s.push_str(&format!("Termination              {}\n", self.termination));
+        let seconds = |v: f64| format!("{v:.4} s");
+        let rows: [(&str, String); 18] = [
+            ("Residual blocks", self.num_residual_blocks.to_string()),
+            ("Eliminated unknowns", self.num_eliminated.to_string()),
+            ("Reduced unknowns", self.num_reduced.to_string()),
+            ("Linear solver", self.linear_solver.name().to_string()),
+            ("Threads", self.num_threads.to_string()),
+            ("Initial cost", format!("{:.6e}", self.initial_cost)),
+            ("Final cost", format!("{:.6e}", self.final_cost)),
+            ("Iterations", self.iterations.to_string()),
+            ("Accepted steps", self.accepted_iterations.to_string()),
+            ("Linear solves", self.linear_solves.to_string()),
+            ("Preprocessing", seconds(t.preprocessing)),
+            ("Residual evaluation", seconds(t.residual_evaluation)),
+            ("Jacobian evaluation", seconds(t.jacobian_evaluation)),
+            ("Schur elimination", seconds(t.schur_elimination)),
+            ("Reduced solve", seconds(t.reduced_solve)),
+            ("Back substitution", seconds(t.back_substitution)),
+            ("Other", seconds(t.other)),
+            ("Total", seconds(t.total)),
+        ];
+        let mut s: String = rows
+            .iter()
+            .map(|(label, value)| format!("{label:<25}{value}\n"))
+            .collect();
+        s.push_str(&format!("{:<25}{}\n", "Termination", self.termination));
         s
     }
 }
