@@ -83,3 +83,39 @@ fn the_result_does_not_depend_on_the_thread_count() {
     assert_eq!(one, on(3));
     assert!(one.frame_sets_used >= 2);
 }
+
+/// Matching an image to the map directly: a ratio outside (0, 1] is refused with a typed
+/// error (the calibration refuses it earlier, as an invalid option), and the default finds
+/// correspondences whose points the image really observes.
+#[test]
+fn match_to_map_refuses_a_bad_ratio_and_matches_true_points() {
+    use ibc_pipeline::calib::localization::{LocalizationFailure, match_to_map};
+    use ibc_pipeline::calib::map_index::MapIndex;
+    let scenario = Scenario::builtin("garage").unwrap().with_scale(0.1);
+    let world = SimulatedWorld::simulate(&scenario).unwrap();
+    let options = CalibrationOptions::default();
+    let index = MapIndex::train(&world.map, &options.vocabulary).unwrap();
+    let features = &world.log.frames[0].images[0];
+    let mut bad = options.localization.clone();
+    bad.ratio = 1.5;
+    assert!(matches!(
+        match_to_map(&index, &world.map, features, &bad),
+        Err(LocalizationFailure::InvalidOption(_))
+    ));
+    let matches = match_to_map(&index, &world.map, features, &options.localization).unwrap();
+    let truth = &world.log_point_ids[0][0];
+    let correct = matches
+        .iter()
+        .filter(|m| truth[m.feature as usize] == Some(m.point))
+        .count();
+    println!(
+        "frame 0, camera 0: {correct} of {} matches correct",
+        matches.len()
+    );
+    assert!(matches.len() >= 25, "{} matches", matches.len());
+    assert!(
+        correct * 100 >= matches.len() * 95,
+        "{correct} of {}",
+        matches.len()
+    );
+}

@@ -19,7 +19,9 @@ pub use bow::{BowVector, FeatureVector, NodeId, WordId};
 pub use database::{Database, ImageId, QueryOptions, QueryResult};
 pub use descriptor::{Descriptor, DescriptorKind, binary_from_bytes, binary_to_bytes};
 pub use error::{FileError, Result, VocabError};
-pub use matching::{Match, MatchOptions, match_brute_force, match_by_nodes};
+pub use matching::{
+    Match, MatchOptions, MatchScratch, match_brute_force, match_by_nodes, match_sets,
+};
 pub use scoring::{LOG_EPS, Norm, Scoring};
 pub use simd::Isa;
 pub use training::TrainingOptions;

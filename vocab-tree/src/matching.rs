@@ -10,10 +10,12 @@
 //!
 //! [`match_by_nodes`] takes the candidates from the direct index: a query feature is compared
 //! only with the train features under the same vocabulary node (Galvez-Lopez and Tardos,
-//! T-RO 2012, section IV-B). [`match_brute_force`] compares every pair.
+//! T-RO 2012, section IV-B). [`match_brute_force`] compares every pair. Both are built on
+//! [`match_sets`], which matches two sets of descriptors given by reference (for a train set
+//! gathered from several sources) with reusable buffers ([`MatchScratch`]).
 
 use crate::bow::FeatureVector;
-use crate::descriptor::Descriptor;
+use crate::descriptor::{Descriptor, DescriptorKind};
 use crate::error::{Result, VocabError};
 use crate::simd::Isa;
 
@@ -59,7 +61,12 @@ impl MatchOptions {
         self
     }
 
-    fn check(&self) -> Result<()> {
+    /// Checks that the options are in their domains.
+    ///
+    /// # Errors
+    /// [`VocabError::InvalidOption`] for a ratio outside `(0, 1]` or a negative or NaN
+    /// `max_distance`.
+    pub fn validate(&self) -> Result<()> {
         if !(self.ratio > 0.0 && self.ratio <= 1.0) {
             return Err(VocabError::InvalidOption {
                 name: "ratio",
@@ -100,7 +107,7 @@ pub fn match_by_nodes<D: Descriptor>(
     train_features: &FeatureVector,
     options: &MatchOptions,
 ) -> Result<Vec<Match>> {
-    options.check()?;
+    options.validate()?;
     for (fv, descs, name) in [
         (query_features, query, "query"),
         (train_features, train, "train"),
@@ -115,6 +122,7 @@ pub fn match_by_nodes<D: Descriptor>(
     }
     let isa = Isa::detect();
     let mut out = Vec::new();
+    let mut sets = GroupSets::new();
     let (mut a, mut b) = (
         query_features.iter().peekable(),
         train_features.iter().peekable(),
@@ -128,7 +136,7 @@ pub fn match_by_nodes<D: Descriptor>(
                 b.next();
             }
             std::cmp::Ordering::Equal => {
-                match_group(isa, query, fa, train, fb, options, &mut out);
+                sets.match_group(isa, query, fa, train, fb, options, &mut out);
                 a.next();
                 b.next();
             }
@@ -145,7 +153,7 @@ pub fn match_brute_force<D: Descriptor>(
     train: &[D],
     options: &MatchOptions,
 ) -> Result<Vec<Match>> {
-    options.check()?;
+    options.validate()?;
     let to_u32 = |n: usize| {
         u32::try_from(n).map_err(|_| {
             VocabError::InvalidFeatureVector(format!("{n} features: feature indices are u32"))
@@ -154,29 +162,60 @@ pub fn match_brute_force<D: Descriptor>(
     let qi: Vec<u32> = (0..to_u32(query.len())?).collect();
     let ti: Vec<u32> = (0..to_u32(train.len())?).collect();
     let mut out = Vec::new();
-    match_group(Isa::detect(), query, &qi, train, &ti, options, &mut out);
+    GroupSets::new().match_group(Isa::detect(), query, &qi, train, &ti, options, &mut out);
     Ok(out)
 }
 
-/// Ratio test and mutual check among the query features `qi` and train features `ti`.
-fn match_group<D: Descriptor>(
-    isa: Isa,
-    query: &[D],
-    qi: &[u32],
-    train: &[D],
-    ti: &[u32],
+/// Reusable buffers of [`match_sets`]: matching many small sets (one per vocabulary node, say)
+/// allocates only while the buffers grow.
+#[derive(Debug, Clone, Default)]
+pub struct MatchScratch {
+    /// Nearest query of each train descriptor: (raw distance, query position).
+    column: Vec<(f64, usize)>,
+    /// Nearest and second-nearest train descriptor of each query: (train position, raw
+    /// distances `d1`, `d2`).
+    rows: Vec<(usize, f64, f64)>,
+}
+
+/// The ratio test and the optional mutual check (see the module docs) between the descriptors
+/// `query` and `train`, given by reference so that either set may be gathered from several
+/// places. Calls `found(query_position, train_position, distance)` for every match, in query
+/// order, with the metric distance. Ties go to the lowest position. `scratch` holds the
+/// buffers between calls.
+///
+/// # Errors
+/// [`VocabError::InvalidOption`] for options outside their domain.
+pub fn match_sets<D: Descriptor>(
+    query: &[&D],
+    train: &[&D],
     options: &MatchOptions,
-    out: &mut Vec<Match>,
+    scratch: &mut MatchScratch,
+    found: impl FnMut(usize, usize, f64),
+) -> Result<()> {
+    options.validate()?;
+    match_sets_with(Isa::detect(), query, train, options, scratch, found);
+    Ok(())
+}
+
+/// [`match_sets`] on checked options with the instruction set `isa`. Candidates are ranked by
+/// the raw distance (Hamming, or squared Euclidean), which orders them as the metric distance
+/// does; only the two nearest are turned into metric distances for the ratio test.
+fn match_sets_with<D: Descriptor>(
+    isa: Isa,
+    query: &[&D],
+    train: &[&D],
+    options: &MatchOptions,
+    scratch: &mut MatchScratch,
+    mut found: impl FnMut(usize, usize, f64),
 ) {
-    // Nearest query feature of each train feature: (distance, position in qi).
-    let mut column = vec![(f64::INFINITY, usize::MAX); ti.len()];
-    // Nearest and second-nearest train feature of each query feature.
-    let mut rows = Vec::with_capacity(qi.len());
-    for (r, &q) in qi.iter().enumerate() {
-        let qd = &query[q as usize];
+    let MatchScratch { column, rows } = scratch;
+    column.clear();
+    column.resize(train.len(), (f64::INFINITY, usize::MAX));
+    rows.clear();
+    for (r, qd) in query.iter().enumerate() {
         let (mut best, mut d1, mut d2) = (usize::MAX, f64::INFINITY, f64::INFINITY);
-        for (c, &t) in ti.iter().enumerate() {
-            let d = D::metric(D::distance_isa(isa, qd, &train[t as usize]));
+        for (c, td) in train.iter().enumerate() {
+            let d: f64 = D::distance_isa(isa, qd, td).into();
             if d < d1 {
                 d2 = d1;
                 d1 = d;
@@ -191,21 +230,77 @@ fn match_group<D: Descriptor>(
         rows.push((best, d1, d2));
     }
     for (r, &(best, d1, d2)) in rows.iter().enumerate() {
-        if best == usize::MAX
-            || d1.partial_cmp(&(options.ratio * d2)) != Some(std::cmp::Ordering::Less)
+        if best == usize::MAX {
+            continue;
+        }
+        let (m1, m2) = (metric::<D>(d1), metric::<D>(d2));
+        if m1.partial_cmp(&(options.ratio * m2)) != Some(std::cmp::Ordering::Less)
+            || options.max_distance.is_some_and(|m| m1 > m)
+            || (options.mutual_check && column[best].1 != r)
         {
             continue;
         }
-        if options.max_distance.is_some_and(|m| d1 > m) {
-            continue;
+        found(r, best, m1);
+    }
+}
+
+/// The metric distance (Hamming bits, or Euclidean distance) of a raw distance (Hamming, or
+/// squared Euclidean) as `f64`; infinity stays infinity.
+fn metric<D: Descriptor>(raw: f64) -> f64 {
+    match D::KIND {
+        DescriptorKind::Binary => raw,
+        DescriptorKind::Float => raw.sqrt(),
+    }
+}
+
+/// The buffers of one matching call: the descriptors of a node's features and the buffers
+/// of [`match_sets_with`].
+struct GroupSets<'a, D> {
+    query: Vec<&'a D>,
+    train: Vec<&'a D>,
+    scratch: MatchScratch,
+}
+
+impl<'a, D: Descriptor> GroupSets<'a, D> {
+    fn new() -> Self {
+        Self {
+            query: Vec::new(),
+            train: Vec::new(),
+            scratch: MatchScratch::default(),
         }
-        if options.mutual_check && column[best].1 != r {
-            continue;
-        }
-        out.push(Match {
-            query: qi[r],
-            train: ti[best],
-            distance: d1,
-        });
+    }
+
+    /// Ratio test and mutual check among the query features `qi` and train features `ti`
+    /// (indices checked by the caller), appended to `out`.
+    #[allow(clippy::too_many_arguments)]
+    fn match_group(
+        &mut self,
+        isa: Isa,
+        query: &'a [D],
+        qi: &[u32],
+        train: &'a [D],
+        ti: &[u32],
+        options: &MatchOptions,
+        out: &mut Vec<Match>,
+    ) {
+        self.query.clear();
+        self.query.extend(qi.iter().map(|&q| &query[q as usize]));
+        self.train.clear();
+        self.train.extend(ti.iter().map(|&t| &train[t as usize]));
+        let found = |r: usize, c: usize, distance: f64| {
+            out.push(Match {
+                query: qi[r],
+                train: ti[c],
+                distance,
+            });
+        };
+        match_sets_with(
+            isa,
+            &self.query,
+            &self.train,
+            options,
+            &mut self.scratch,
+            found,
+        );
     }
 }

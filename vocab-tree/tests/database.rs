@@ -9,8 +9,9 @@ use std::sync::Arc;
 
 use common::{SCORINGS, flip_bits, random_orb, rng};
 use ibc_vocab_tree::{
-    BowVector, Database, FeatureVector, Match, MatchOptions, OrbDescriptor, QueryOptions, Scoring,
-    TrainingOptions, VocabError, Vocabulary, match_brute_force, match_by_nodes,
+    BowVector, Database, FeatureVector, Match, MatchOptions, MatchScratch, OrbDescriptor,
+    QueryOptions, Scoring, TrainingOptions, VocabError, Vocabulary, match_brute_force,
+    match_by_nodes, match_sets,
 };
 use proptest::prelude::*;
 use rand::RngExt;
@@ -303,6 +304,66 @@ fn matching_by_nodes_finds_true_correspondences() {
     // Every node match is a brute-force candidate pair.
     let brute = match_brute_force(&a, &b, &MatchOptions::default()).unwrap();
     assert!(brute.iter().filter(|x| x.query == x.train + 90).count() >= m.len());
+}
+
+/// `match_sets` on a train set gathered by reference (every other descriptor, in reverse
+/// order), with one scratch reused across calls of different sizes, gives brute-force
+/// matching of copies of the same descriptors, position for position.
+#[test]
+fn match_sets_on_gathered_references_is_brute_force() {
+    let mut r = rng(41);
+    let protos: Vec<OrbDescriptor> = (0..40).map(|_| random_orb(&mut r)).collect();
+    let mut scratch = MatchScratch::default();
+    for (queries, trains) in [(50usize, 80usize), (7, 3), (60, 120), (1, 1)] {
+        let q: Vec<_> = (0..queries)
+            .map(|_| flip_bits(&protos[r.random_range(0..40)], 0.1, &mut r))
+            .collect();
+        let all: Vec<_> = (0..trains)
+            .map(|_| flip_bits(&protos[r.random_range(0..40)], 0.1, &mut r))
+            .collect();
+        let train: Vec<&OrbDescriptor> = all.iter().step_by(2).rev().collect();
+        let copies: Vec<OrbDescriptor> = train.iter().map(|t| **t).collect();
+        let query: Vec<&OrbDescriptor> = q.iter().collect();
+        for mutual in [false, true] {
+            let o = MatchOptions::default().with_mutual_check(mutual);
+            let mut found = Vec::new();
+            match_sets(&query, &train, &o, &mut scratch, |a, b, distance| {
+                found.push(Match {
+                    query: a as u32,
+                    train: b as u32,
+                    distance,
+                });
+            })
+            .unwrap();
+            assert_eq!(found, match_brute_force(&q, &copies, &o).unwrap());
+            if queries >= 50 {
+                assert!(found.len() >= 5, "{} matches", found.len());
+            }
+        }
+    }
+    let bad = MatchOptions::default().with_ratio(1.5);
+    let refused = match_sets(
+        &[&protos[0]],
+        &[&protos[1]],
+        &bad,
+        &mut scratch,
+        |_, _, _| {},
+    );
+    assert!(matches!(refused, Err(VocabError::InvalidOption { .. })));
+}
+
+/// The ratio test compares metric (Euclidean) distances of float descriptors, not the squared
+/// distances the tree uses: nearest 1.0 and second 1.3 give a ratio of 0.77 (rejected at 0.7),
+/// though their squares would give 0.59.
+#[test]
+fn float_ratio_test_uses_euclidean_distances() {
+    let query = [[0.0f32, 0.0]];
+    let train = [[1.0f32, 0.0], [0.0, 1.3]];
+    let o = MatchOptions::default();
+    assert!(match_brute_force(&query, &train, &o).unwrap().is_empty());
+    let m = match_brute_force(&query, &train, &o.with_ratio(0.8)).unwrap();
+    assert_eq!(m.len(), 1);
+    assert_eq!((m[0].train, m[0].distance), (0, 1.0));
 }
 
 proptest! {

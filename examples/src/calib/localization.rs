@@ -22,7 +22,7 @@
 
 use ibc_camera_models::{Camera, CameraModel};
 use ibc_pnp::{RansacOptions, angle_from_pixels_at, robust_pose};
-use ibc_vocab_tree::{Descriptor, DescriptorKind, QueryOptions};
+use ibc_vocab_tree::{Descriptor, MatchOptions, MatchScratch, QueryOptions, match_sets};
 use nalgebra::{Isometry3, Point3, Vector3};
 use rayon::prelude::*;
 
@@ -82,6 +82,9 @@ pub enum LocalizationFailure {
     /// The pose solver refused the correspondences (degenerate geometry).
     #[error("pose: {0}")]
     Pose(String),
+    /// The matching options are outside their domain.
+    #[error("matching: {0}")]
+    InvalidOption(String),
 }
 
 /// What happened to one image.
@@ -178,13 +181,11 @@ fn image_seed(seed: u64, frame: usize, camera: usize) -> u64 {
     mix(mix(seed ^ mix(frame as u64)) ^ camera as u64)
 }
 
-/// The metric distance of two descriptors (Hamming bits, or Euclidean distance), from the
-/// vocabulary's fast distance (Hamming, or squared Euclidean).
-fn metric<D: Descriptor>(distance: f64) -> f64 {
-    match D::KIND {
-        DescriptorKind::Binary => distance,
-        DescriptorKind::Float => distance.sqrt(),
-    }
+/// The vocabulary crate's matching options for `options` (ratio and mutual check).
+fn match_options(options: &LocalizationOptions) -> MatchOptions {
+    MatchOptions::default()
+        .with_ratio(options.ratio)
+        .with_mutual_check(options.mutual_check)
 }
 
 /// The 2D-3D correspondences of an image (steps 1 to 4 of the module docs), sorted by
@@ -200,13 +201,18 @@ fn metric<D: Descriptor>(distance: f64) -> f64 {
 /// each point once, however many candidates see it.
 ///
 /// # Errors
-/// [`LocalizationFailure::NoFeatures`] and [`LocalizationFailure::NoCandidates`].
+/// [`LocalizationFailure::NoFeatures`], [`LocalizationFailure::NoCandidates`], and
+/// [`LocalizationFailure::InvalidOption`] for a ratio outside `(0, 1]`.
 pub fn match_to_map<D: Descriptor>(
     index: &MapIndex<D>,
     map: &Map<D>,
     features: &ImageFeatures<D>,
     options: &LocalizationOptions,
 ) -> Result<Vec<Correspondence>, LocalizationFailure> {
+    let matching = match_options(options);
+    matching
+        .validate()
+        .map_err(|e| LocalizationFailure::InvalidOption(e.to_string()))?;
     if features.is_empty() {
         return Err(LocalizationFailure::NoFeatures);
     }
@@ -229,13 +235,16 @@ pub fn match_to_map<D: Descriptor>(
     // already in the current node's pool). The candidates' groups are sorted by node, like
     // the query's feature vector, so one cursor per candidate walks them in step.
     let mut stamp = vec![u32::MAX; map.points.len()];
-    let mut pool: Vec<(PointId, &D)> = Vec::new();
-    let mut nearest_query: Vec<(f64, u32)> = Vec::new();
-    let mut rows: Vec<(u32, usize, f64, f64)> = Vec::new();
+    let mut pool_points: Vec<PointId> = Vec::new();
+    let mut pool: Vec<&D> = Vec::new();
+    let mut query_features: Vec<u32> = Vec::new();
+    let mut query: Vec<&D> = Vec::new();
+    let mut scratch = MatchScratch::default();
     let mut cursors: Vec<_> = candidates.iter().map(|g| g.iter().peekable()).collect();
     // (distance, feature, point)
     let mut pairs: Vec<(f64, u32, PointId)> = Vec::new();
     for (node_index, (node, query_group)) in feature_vector.iter().enumerate() {
+        pool_points.clear();
         pool.clear();
         for cursor in &mut cursors {
             while cursor.next_if(|(n, _, _)| *n < node).is_some() {}
@@ -247,49 +256,27 @@ pub fn match_to_map<D: Descriptor>(
                     && *s != node_index as u32
                 {
                     *s = node_index as u32;
-                    pool.push((*point, descriptor));
+                    pool_points.push(*point);
+                    pool.push(descriptor);
                 }
             }
         }
         if pool.is_empty() {
             continue;
         }
-        nearest_query.clear();
-        nearest_query.resize(pool.len(), (f64::INFINITY, u32::MAX));
-        rows.clear();
+        query_features.clear();
+        query.clear();
         for &q in query_group {
-            let Some(qd) = features.descriptors.get(q as usize) else {
-                continue;
-            };
-            let (mut best, mut d1, mut d2) = (usize::MAX, f64::INFINITY, f64::INFINITY);
-            for (j, (_, pd)) in pool.iter().enumerate() {
-                let d: f64 = qd.distance(pd).into();
-                if d < d1 {
-                    d2 = d1;
-                    d1 = d;
-                    best = j;
-                } else if d < d2 {
-                    d2 = d;
-                }
-                if d < nearest_query[j].0 {
-                    nearest_query[j] = (d, q);
-                }
+            if let Some(descriptor) = features.descriptors.get(q as usize) {
+                query_features.push(q);
+                query.push(descriptor);
             }
-            rows.push((q, best, d1, d2));
         }
-        for &(q, best, d1, d2) in &rows {
-            if best == usize::MAX {
-                continue;
-            }
-            let (m1, m2) = (metric::<D>(d1), metric::<D>(d2));
-            if m1.partial_cmp(&(options.ratio * m2)) != Some(std::cmp::Ordering::Less) {
-                continue;
-            }
-            if options.mutual_check && nearest_query[best].1 != q {
-                continue;
-            }
-            pairs.push((m1, q, pool[best].0));
-        }
+        let found = |r: usize, c: usize, distance: f64| {
+            pairs.push((distance, query_features[r], pool_points[c]));
+        };
+        match_sets(&query, &pool, &matching, &mut scratch, found)
+            .map_err(|e| LocalizationFailure::InvalidOption(e.to_string()))?;
     }
     pairs.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)).then(a.2.cmp(&b.2)));
     let mut feature_used = vec![false; features.len()];
