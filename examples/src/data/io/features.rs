@@ -1,9 +1,10 @@
-//! Decoding the keypoint and descriptor sections shared by maps and logs, image by image in
-//! parallel (the sections are sliced per image first, so every image is independent; errors
-//! are reported for the first bad image in file order).
+//! The keypoint and descriptor sections shared by maps and logs: encoding, and decoding image
+//! by image in parallel (the sections are sliced per image first, so every image is
+//! independent; errors are reported for the first bad image in file order).
 
 use nalgebra::Vector2;
 
+use super::bytes::put_f64;
 use super::descriptor::FileDescriptor;
 use super::error::{FormatError, invalid};
 use crate::data::ImageFeatures;
@@ -14,6 +15,23 @@ fn le_f64(b: &[u8]) -> f64 {
     let mut a = [0u8; 8];
     a.copy_from_slice(b);
     f64::from_le_bytes(a)
+}
+
+/// Appends the keypoint section (`x`, `y` as `f64`, 16 bytes per feature) and then the
+/// descriptor section ([`FileDescriptor::BYTES`] per feature) of `images`, in order.
+pub(crate) fn put_feature_sections<'a, D: FileDescriptor + 'a>(
+    out: &mut Vec<u8>,
+    images: impl Iterator<Item = &'a ImageFeatures<D>> + Clone,
+) {
+    for image in images.clone() {
+        for k in &image.keypoints {
+            put_f64(out, k.x);
+            put_f64(out, k.y);
+        }
+    }
+    for image in images {
+        image.descriptors.iter().for_each(|d| d.write_le(out));
+    }
 }
 
 /// The index of each image's first feature.

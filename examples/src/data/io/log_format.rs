@@ -9,7 +9,7 @@ use super::bytes::{
 };
 use super::descriptor::FileDescriptor;
 use super::error::{FormatError, invalid};
-use super::features::{decode_features, starts};
+use super::features::{decode_features, put_feature_sections, starts};
 use super::map_format::check_features;
 use crate::data::{Frame, ImageFeatures, OdometryKind, RigLog};
 
@@ -174,15 +174,7 @@ pub fn log_to_bytes<D: FileDescriptor>(log: &RigLog<D>) -> Result<Vec<u8>, Forma
             put_u32(&mut out, image.len() as u32);
         }
     }
-    for image in log.frames.iter().flat_map(|f| &f.images) {
-        for k in &image.keypoints {
-            put_f64(&mut out, k.x);
-            put_f64(&mut out, k.y);
-        }
-    }
-    for image in log.frames.iter().flat_map(|f| &f.images) {
-        image.descriptors.iter().for_each(|d| d.write_le(&mut out));
-    }
+    put_feature_sections(&mut out, log.frames.iter().flat_map(|f| &f.images));
     Ok(finish(out))
 }
 

@@ -10,7 +10,7 @@ use super::bytes::{
 };
 use super::descriptor::FileDescriptor;
 use super::error::{FormatError, invalid};
-use super::features::{decode_features, starts};
+use super::features::{decode_features, put_feature_sections, starts};
 use crate::data::{ImageFeatures, Map, MapImage};
 
 /// Bytes of the map header (common header and counts).
@@ -127,19 +127,7 @@ pub fn map_to_bytes<D: FileDescriptor>(map: &Map<D>) -> Result<Vec<u8>, FormatEr
         out.extend_from_slice(&[0; 3]);
         put_pose(&mut out, image.camera_from_world.as_ref());
     }
-    for image in &map.images {
-        for k in &image.features.keypoints {
-            put_f64(&mut out, k.x);
-            put_f64(&mut out, k.y);
-        }
-    }
-    for image in &map.images {
-        image
-            .features
-            .descriptors
-            .iter()
-            .for_each(|d| d.write_le(&mut out));
-    }
+    put_feature_sections(&mut out, map.images.iter().map(|i| &i.features));
     for image in &map.images {
         for id in &image.point_ids {
             put_u32(&mut out, id.unwrap_or(NO_POINT));
