@@ -19,19 +19,13 @@ use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector2, Vector3};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-fn problem49() -> Option<BalProblem> {
+/// The BAL problem-49 kept in the bundle adjuster's test data.
+fn problem49() -> BalProblem {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../shared/bal/problem-49-7776-pre.txt");
-    match BalProblem::from_file(&path) {
-        Ok(mut bal) => {
-            bal.normalize();
-            Some(bal)
-        }
-        Err(e) => {
-            eprintln!("skipping the BAL benches: {e}");
-            None
-        }
-    }
+        .join("../bundle-adjust/tests/data/problem-49-7776-pre.txt");
+    let mut bal = BalProblem::from_file(&path).expect("the BAL file in bundle-adjust/tests/data");
+    bal.normalize();
+    bal
 }
 
 fn options(solver: LinearSolverType, threads: usize, full_budget: bool) -> SolverOptions {
@@ -47,7 +41,7 @@ fn options(solver: LinearSolverType, threads: usize, full_budget: bool) -> Solve
 }
 
 fn bal49(c: &mut Criterion) {
-    let Some(bal) = problem49() else { return };
+    let bal = problem49();
     let mut g = c.benchmark_group("bal49");
     g.sample_size(10)
         .warm_up_time(Duration::from_secs(1))

@@ -8,8 +8,8 @@
 //! `bundle_adjuster` normalizes the reconstruction first (`BALProblem::Normalize`: recentre
 //! on the median point, scale the median absolute deviation to 100), which leaves every
 //! reprojection, hence the costs, unchanged but changes the solver's path; the solves below
-//! do the same with [`BalProblem::normalize`]. Tests skip with a message when the file is
-//! absent.
+//! do the same with [`BalProblem::normalize`]. The files are in `tests/data` (see its
+//! README).
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
 mod common;
@@ -19,15 +19,15 @@ use common::bal_path;
 use ibc_bundle_adjust::{BalProblem, LinearSolverType, Loss, SolverOptions, Summary};
 use nalgebra::{Rotation3, Vector3};
 
-fn problem49() -> Option<BalProblem> {
-    let path = bal_path("problem-49-7776-pre.txt")?;
+fn problem49() -> BalProblem {
+    let path = bal_path("problem-49-7776-pre.txt");
     let mut bal = BalProblem::from_file(path).unwrap();
     assert_eq!(
         (bal.cameras.len(), bal.points.len(), bal.observations.len()),
         (49, 7776, 31843)
     );
     bal.normalize();
-    Some(bal)
+    bal
 }
 
 /// Ceres's `Solver::Options` defaults, optionally without the convergence tests.
@@ -42,16 +42,16 @@ fn options(solver: LinearSolverType, full_budget: bool) -> SolverOptions {
     o
 }
 
-fn solve(loss: Loss, solver: LinearSolverType) -> Option<Summary> {
-    let mut bal = problem49()?;
+fn solve(loss: Loss, solver: LinearSolverType) -> Summary {
+    let mut bal = problem49();
     let s = bal.solve(loss, &options(solver, true)).unwrap();
     assert_eq!(s.iterations, 50);
-    Some(s)
+    s
 }
 
 #[test]
 fn initial_costs_match_ceres_to_seven_digits() {
-    let Some(bal) = problem49() else { return };
+    let bal = problem49();
     for (loss, ceres) in [
         (Loss::Trivial, 8.509125e5),
         (Loss::Cauchy(1.0), 3.102958e4),
@@ -65,7 +65,7 @@ fn initial_costs_match_ceres_to_seven_digits() {
 
 #[test]
 fn default_tolerances_converge_like_ceres() {
-    let Some(mut bal) = problem49() else { return };
+    let mut bal = problem49();
     let s = bal
         .solve(Loss::Trivial, &options(LinearSolverType::DenseSchur, false))
         .unwrap();
@@ -85,11 +85,9 @@ fn default_tolerances_converge_like_ceres() {
 
 #[test]
 fn fifty_iterations_dense_sparse_and_iterative_agree() {
-    let Some(dense) = solve(Loss::Trivial, LinearSolverType::DenseSchur) else {
-        return;
-    };
-    let sparse = solve(Loss::Trivial, LinearSolverType::SparseSchur).unwrap();
-    let iterative = solve(Loss::Trivial, LinearSolverType::IterativeSchur).unwrap();
+    let dense = solve(Loss::Trivial, LinearSolverType::DenseSchur);
+    let sparse = solve(Loss::Trivial, LinearSolverType::SparseSchur);
+    let iterative = solve(Loss::Trivial, LinearSolverType::IterativeSchur);
     assert!(dense.final_cost <= 1.33443e4, "{}", dense.final_cost);
     assert_eq!(sparse.linear_solver, LinearSolverType::SparseSchur);
     assert_eq!(iterative.linear_solver, LinearSolverType::IterativeSchur);
@@ -106,16 +104,14 @@ fn fifty_iterations_dense_sparse_and_iterative_agree() {
 
 #[test]
 fn fifty_iterations_with_robust_losses() {
-    let Some(cauchy) = solve(Loss::Cauchy(1.0), LinearSolverType::DenseSchur) else {
-        return;
-    };
+    let cauchy = solve(Loss::Cauchy(1.0), LinearSolverType::DenseSchur);
     assert!(
         cauchy.final_cost <= 4.0980e3,
         "{} (Ceres: 4.097712e3)",
         cauchy.final_cost
     );
     assert_relative_eq!(cauchy.initial_cost, 3.102958e4, max_relative = 5e-7);
-    let huber = solve(Loss::Huber(1.0), LinearSolverType::DenseSchur).unwrap();
+    let huber = solve(Loss::Huber(1.0), LinearSolverType::DenseSchur);
     assert!(huber.final_cost <= 7.6490e3, "{}", huber.final_cost);
     assert_relative_eq!(huber.initial_cost, 1.206505e5, max_relative = 5e-7);
 }
@@ -124,9 +120,7 @@ fn fifty_iterations_with_robust_losses() {
 /// (nalgebra's rotation), without optimizing (the problem is under-determined).
 #[test]
 fn dubrovnik_parses_and_projects() {
-    let Some(path) = bal_path("dubrovnik-3-7-pre.txt") else {
-        return;
-    };
+    let path = bal_path("dubrovnik-3-7-pre.txt");
     let bal = BalProblem::from_file(path).unwrap();
     assert_eq!(
         (bal.cameras.len(), bal.points.len(), bal.observations.len()),

@@ -11,20 +11,14 @@ use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
 
-/// Path of a shared BAL file, or `None` (with a message) when it is absent.
-pub fn bal_path(name: &str) -> Option<std::path::PathBuf> {
+/// Path of a BAL file kept in `tests/data` (see its README for the sources); the tests
+/// need it, so an absent file fails them rather than skipping them.
+pub fn bal_path(name: &str) -> std::path::PathBuf {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../shared/bal")
+        .join("tests/data")
         .join(name);
-    if path.exists() {
-        Some(path)
-    } else {
-        eprintln!(
-            "skipping: {} is absent (place the `shared` folder beside the checkout)",
-            path.display()
-        );
-        None
-    }
+    assert!(path.is_file(), "{} is missing from the repository", path.display());
+    path
 }
 
 /// A random BAL-like scene: cameras on a circle looking at a cloud of points.
