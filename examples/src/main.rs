@@ -7,8 +7,18 @@ use clap::Parser;
 
 fn main() {
     let args = cli::Cli::parse();
-    if let Err(e) = cli::run(args) {
-        eprintln!("error: {}", e.one_line());
-        std::process::exit(1);
+    match cli::run(args) {
+        Ok(cli::Outcome::Done) => {}
+        Ok(cli::Outcome::Poor) => {
+            eprintln!(
+                "warning: the result did not pass its quality gates (status `poor`; the \
+                 warnings in the report say why)"
+            );
+            std::process::exit(cli::EXIT_POOR);
+        }
+        Err(e) => {
+            eprintln!("error: {}", e.one_line());
+            std::process::exit(1);
+        }
     }
 }

@@ -11,6 +11,7 @@
 //! | initialization | [`initialize`] | [`initialization`] |
 //! | refinement | [`refine`] | [`refinement`] |
 //! | hand-eye calibration | [`calibrate_hand_eye`] | [`hand_eye`] |
+//! | per-camera figures and quality gates | [`quality::assess`] | [`quality`] |
 //! | errors against ground truth | [`Calibration::accuracy`] | [`accuracy`] |
 //!
 //! Every default in [`CalibrationOptions`] is the paper's (or, where the paper gives none,
@@ -29,6 +30,7 @@ pub mod map_index;
 mod options;
 mod pipeline;
 mod progress;
+pub mod quality;
 pub mod refinement;
 
 pub use accuracy::{CameraAccuracy, HandEyeAccuracy};
@@ -47,4 +49,5 @@ pub use options::{
 };
 pub use pipeline::{Accuracy, Calibration, Timing, calibrate, calibrate_with, finite_mean};
 pub use progress::{NoProgress, Progress, Stage};
+pub use quality::{CalibrationWarning, CameraQuality, Quality, ResidualStats, Status};
 pub use refinement::{PoseStd, Refinement, RigObservation, refine};

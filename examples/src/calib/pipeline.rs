@@ -4,9 +4,9 @@
 use std::sync::Arc;
 use std::time::Instant;
 
-use ibc_camera_models::{Camera, Rig};
+use ibc_camera_models::{Camera, CameraModel, Rig};
 use ibc_vocab_tree::{Descriptor, Vocabulary};
-use nalgebra::Isometry3;
+use nalgebra::{Isometry3, Vector2};
 
 use super::accuracy::{
     CameraAccuracy, HandEyeAccuracy, camera_accuracy, hand_eye_accuracy, true_rig_from_odometry,
@@ -19,7 +19,10 @@ use super::localization::{Localizations, localize_log};
 use super::map_index::MapIndex;
 use super::options::{CalibrationOptions, evenly_spaced};
 use super::progress::{NoProgress, Progress, Stage};
-use super::refinement::{Refinement, RigObservation, refine, reprojection_error};
+use super::quality::{Quality, RefinementFacts, assess};
+use super::refinement::{
+    Refinement, RigObservation, refine, reprojection_error, reprojection_residual,
+};
 use crate::data::{GroundTruth, Map, OdometryKind, RigLog};
 
 /// Wall-clock seconds per stage (not deterministic: leave them out of comparisons).
@@ -69,6 +72,9 @@ pub struct Calibration {
     pub initial_errors_px: Vec<f64>,
     /// The same at the refined estimate.
     pub final_errors_px: Vec<f64>,
+    /// Per-camera residual figures and the warnings of the quality gates
+    /// ([`super::quality`]).
+    pub quality: Quality,
     /// The hand-eye method used, `None` when no hand-eye calibration was asked for (no
     /// odometry, or skipped).
     pub hand_eye_solver: Option<HandEyeSolver>,
@@ -278,25 +284,53 @@ fn observations<D>(
     out
 }
 
-/// The reprojection error of every observation under the given estimate.
-fn errors(
+/// The reprojection residual of every observation under the given estimate (NaN where the
+/// point does not project).
+fn residuals(
     cameras: &[Camera],
     rig_from_camera: &[Isometry3<f64>],
     world_from_rig: &[Isometry3<f64>],
     observations: &[RigObservation],
-) -> Vec<f64> {
+) -> Vec<Vector2<f64>> {
     use rayon::prelude::*;
     observations
         .par_iter()
         .map(|o| {
             let c = o.camera as usize;
-            reprojection_error(
+            reprojection_residual(
                 &cameras[c],
                 &rig_from_camera[c],
                 &world_from_rig[o.set as usize],
                 o,
             )
-            .unwrap_or(f64::NAN)
+            .unwrap_or(Vector2::repeat(f64::NAN))
+        })
+        .collect()
+}
+
+/// The lengths of residuals (NaN stays NaN).
+fn lengths(residuals: &[Vector2<f64>]) -> Vec<f64> {
+    residuals.iter().map(Vector2::norm).collect()
+}
+
+/// Images, localized images and localization inliers of every camera.
+fn localization_counts(
+    localizations: &Localizations,
+    cameras: usize,
+) -> Vec<(usize, usize, usize)> {
+    (0..cameras)
+        .map(|c| {
+            let mut counts = (0, 0, 0);
+            for frame in &localizations.images {
+                if let Some(image) = frame.get(c) {
+                    counts.0 += 1;
+                    if let Ok(l) = image {
+                        counts.1 += 1;
+                        counts.2 += l.inliers.len();
+                    }
+                }
+            }
+            counts
         })
         .collect()
 }
@@ -393,18 +427,40 @@ pub fn calibrate_with<D: Descriptor>(
         &observations,
         &options.refinement,
     )?;
-    let initial_errors_px = errors(
+    let initial_residuals = residuals(
         &cameras,
         &initialization.rig_from_camera,
         &initialization.world_from_rig,
         &observations,
     );
-    let final_errors_px = errors(
+    let final_residuals = residuals(
         &cameras,
         &refinement.rig_from_camera,
         &refinement.world_from_rig,
         &observations,
     );
+    let prior_rig_from_camera: Vec<Isometry3<f64>> =
+        rig.cameras.iter().map(|c| c.rig_from_camera).collect();
+    let quality = assess(&RefinementFacts {
+        names: &log.camera_names,
+        image_sizes: cameras.iter().map(|c| (c.width(), c.height())).collect(),
+        localization: localization_counts(&localizations, cameras.len()),
+        observations: observations
+            .iter()
+            .map(|o| (o.camera as usize, o.pixel))
+            .collect(),
+        initial: &initial_residuals,
+        refined: &final_residuals,
+        cauchy_scale_px: options.refinement.cauchy_scale_px,
+        converged: (
+            refinement.converged,
+            &refinement.termination,
+            refinement.iterations,
+        ),
+        covariance: refinement.rig_from_camera_std.is_some(),
+        prior_rig_from_camera: &prior_rig_from_camera,
+        rig_from_camera: &refinement.rig_from_camera,
+    });
     timing.refinement = t.elapsed().as_secs_f64();
     progress.finish(Stage::Refinement);
 
@@ -427,7 +483,7 @@ pub fn calibrate_with<D: Descriptor>(
     Ok(Calibration {
         camera_names: log.camera_names.clone(),
         cameras,
-        prior_rig_from_camera: rig.cameras.iter().map(|c| c.rig_from_camera).collect(),
+        prior_rig_from_camera,
         rig_from_camera: refinement.rig_from_camera.clone(),
         odometry: log.odometry,
         localizations,
@@ -435,8 +491,9 @@ pub fn calibrate_with<D: Descriptor>(
         initialization,
         refinement,
         observations,
-        initial_errors_px,
-        final_errors_px,
+        initial_errors_px: lengths(&initial_residuals),
+        final_errors_px: lengths(&final_residuals),
+        quality,
         hand_eye_solver,
         hand_eye,
         timing,

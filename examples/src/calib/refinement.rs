@@ -76,6 +76,24 @@ pub struct Refinement {
     pub iterations: usize,
     /// Why the solver stopped.
     pub termination: String,
+    /// Whether it stopped on a convergence criterion (not on its iteration budget or a
+    /// failure).
+    pub converged: bool,
+}
+
+/// The reprojection residual (projected minus observed pixel) of an observation under the
+/// given poses, `None` where the point cannot be projected.
+pub fn reprojection_residual(
+    camera: &Camera,
+    rig_from_camera: &Isometry3<f64>,
+    world_from_rig: &Isometry3<f64>,
+    observation: &RigObservation,
+) -> Option<Vector2<f64>> {
+    let p_cam = (world_from_rig * rig_from_camera).inverse_transform_point(&observation.point);
+    camera
+        .project(&p_cam.coords)
+        .ok()
+        .map(|pixel| pixel - observation.pixel)
 }
 
 /// The reprojection error (pixels) of an observation under the given poses, `None` where the
@@ -86,11 +104,7 @@ pub fn reprojection_error(
     world_from_rig: &Isometry3<f64>,
     observation: &RigObservation,
 ) -> Option<f64> {
-    let p_cam = (world_from_rig * rig_from_camera).inverse_transform_point(&observation.point);
-    camera
-        .project(&p_cam.coords)
-        .ok()
-        .map(|pixel| (pixel - observation.pixel).norm())
+    reprojection_residual(camera, rig_from_camera, world_from_rig, observation).map(|r| r.norm())
 }
 
 fn refinement_error(e: impl std::fmt::Display) -> CalibrationError {
@@ -202,6 +216,7 @@ pub fn refine(
         final_cost: result.summary.final_cost,
         iterations: result.summary.iterations,
         termination: result.summary.termination.name().to_owned(),
+        converged: result.summary.termination.is_converged(),
     })
 }
 

@@ -4,16 +4,16 @@ use std::path::Path;
 use std::sync::Arc;
 
 use ibc_camera_models::Rig;
-use ibc_pipeline::calib::{Calibration, CalibrationOptions, calibrate_with};
+use ibc_pipeline::calib::{Calibration, Status, calibrate_with};
 use ibc_pipeline::data::GroundTruth;
 use ibc_pipeline::data::io::{
     DescriptorLayout, FileDescriptor, read_descriptor_layout, read_log, read_map, read_truth,
 };
-use ibc_pipeline::report::{Report, text_table, write_outputs};
+use ibc_pipeline::report::{Report, output_names, text_table, write_outputs};
 use ibc_vocab_tree::{Descriptor, DescriptorKind, Vocabulary};
 
 use super::progress::Bars;
-use super::{CalibrateArgs, CliError, print};
+use super::{CalibrateArgs, CliError, Outcome, print};
 
 /// Reads the camera file: a CamOdoCal folder (or its `extrinsic.txt`), else a Kalibr camchain.
 fn read_cameras(path: &Path) -> Result<Rig, CliError> {
@@ -37,31 +37,52 @@ fn read_cameras(path: &Path) -> Result<Rig, CliError> {
     }
 }
 
-/// Builds the report, writes the output files when `out` is given, and prints the table (or
-/// the JSON report).
+/// Builds the report, writes the output files when `out` is given, prints the table (or the
+/// JSON report), says where the files went (after the table; on standard error with `json`
+/// unless `quiet`), and returns whether the calibration passed its quality gates.
 pub fn finish(
     calibration: &Calibration,
     truth: Option<&GroundTruth>,
     prior: Option<&Rig>,
     out: Option<&Path>,
     json: bool,
-) -> Result<(), CliError> {
+    quiet: bool,
+) -> Result<Outcome, CliError> {
     let report = Report::new(calibration, truth)?;
-    if let Some(dir) = out {
-        write_outputs(dir, calibration, &report, prior)?;
-    }
+    let written = out
+        .map(|dir| write_outputs(dir, calibration, &report, prior).map(|_| dir))
+        .transpose()?;
+    let wrote = written.map(|dir| {
+        format!(
+            "wrote {} ({}, {}, {}, {}/, {}, {})\n",
+            dir.display(),
+            output_names::REPORT_JSON,
+            output_names::REPORT_TEXT,
+            output_names::CAMCHAIN,
+            output_names::CAMODOCAL_DIR,
+            output_names::TOP_VIEW,
+            output_names::ERRORS
+        )
+    });
     if json {
-        print(&(report.to_json() + "\n"))
+        print(&(report.to_json() + "\n"))?;
+        if let (Some(line), false) = (&wrote, quiet) {
+            eprint!("{line}");
+        }
     } else {
-        print(&text_table(&report))
+        print(&(text_table(&report) + wrote.as_deref().unwrap_or("")))?;
     }
+    Ok(match report.status {
+        Status::Ok => Outcome::Done,
+        Status::Poor => Outcome::Poor,
+    })
 }
 
 /// The calibration with descriptors of type `D`.
 fn calibrate_files<D: Descriptor + FileDescriptor>(
     args: &CalibrateArgs,
     bars: &Bars,
-) -> Result<(), CliError> {
+) -> Result<Outcome, CliError> {
     let rig = read_cameras(&args.cameras)?;
     let truth = args
         .truth
@@ -96,25 +117,19 @@ fn calibrate_files<D: Descriptor + FileDescriptor>(
             })
         })
         .transpose()?;
-    let calibration = calibrate_with(
-        &map,
-        &log,
-        &rig,
-        &CalibrationOptions::default(),
-        vocabulary,
-        bars,
-    )?;
+    let calibration = calibrate_with(&map, &log, &rig, &args.hand_eye.options(), vocabulary, bars)?;
     finish(
         &calibration,
         truth.as_ref(),
         Some(&rig),
         Some(&args.out),
         args.json,
+        args.quiet,
     )
 }
 
 /// Runs `ibc calibrate`.
-pub fn run(args: &CalibrateArgs) -> Result<(), CliError> {
+pub fn run(args: &CalibrateArgs) -> Result<Outcome, CliError> {
     let bars = Bars::new(args.quiet);
     let data = |what| move |source| CliError::Data { what, source };
     let map = read_descriptor_layout(&args.map).map_err(data("map"))?;

@@ -1,13 +1,13 @@
 //! `ibc demo`: a scenario simulated in memory, calibrated and reported.
 
-use ibc_pipeline::calib::{CalibrationOptions, calibrate_with};
+use ibc_pipeline::calib::calibrate_with;
 use ibc_pipeline::sim::{Scenario, SimulatedWorld};
 
 use super::progress::Bars;
-use super::{CliError, DemoArgs, calibrate::finish};
+use super::{CliError, DemoArgs, Outcome, calibrate::finish};
 
 /// Runs `ibc demo`.
-pub fn run(args: &DemoArgs) -> Result<(), CliError> {
+pub fn run(args: &DemoArgs) -> Result<Outcome, CliError> {
     let bars = Bars::new(args.quiet);
     let mut scenario = Scenario::resolve(&args.scenario)?;
     if let Some(seed) = args.seed {
@@ -20,7 +20,7 @@ pub fn run(args: &DemoArgs) -> Result<(), CliError> {
         &world.map,
         &world.log,
         &world.map_rig,
-        &CalibrationOptions::default(),
+        &args.hand_eye.options(),
         None,
         &bars,
     )?;
@@ -30,5 +30,6 @@ pub fn run(args: &DemoArgs) -> Result<(), CliError> {
         Some(&world.map_rig),
         args.out.as_deref(),
         args.json,
+        args.quiet,
     )
 }

@@ -124,7 +124,7 @@ pub fn run(args: &IntrinsicsArgs) -> Result<IntrinsicsOutcome, IntrinsicsError> 
 ///
 /// # Errors
 /// [`CliError::Intrinsics`] with [`run`]'s error.
-pub fn run_command(args: &IntrinsicsArgs) -> Result<(), CliError> {
+pub fn run_command(args: &IntrinsicsArgs) -> Result<super::Outcome, CliError> {
     run(args)?;
-    Ok(())
+    Ok(super::Outcome::Done)
 }

@@ -10,9 +10,52 @@ mod simulate;
 use std::io::Write as _;
 use std::path::PathBuf;
 
-use clap::{Args, Parser, Subcommand};
+use clap::{Args, Parser, Subcommand, ValueEnum};
+use ibc_pipeline::calib::{CalibrationOptions, HandEyeMethod};
 
 pub use error::CliError;
+
+/// Exit code of a command whose result was computed and written but did not pass its quality
+/// gates (status `poor`; the warnings say why). 1 is an input or computation error, 2 a usage
+/// error.
+pub const EXIT_POOR: i32 = 3;
+
+/// How a command that did not fail ended.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Outcome {
+    /// The result passed its quality gates (or the command judges nothing).
+    Done,
+    /// The result was written but did not pass its quality gates.
+    Poor,
+}
+
+/// The hand-eye method, as the command line names it.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, ValueEnum)]
+pub enum HandEyeArg {
+    /// From the log's odometry: planar odometry uses Guo et al., 6-DoF odometry Daniilidis.
+    #[default]
+    Auto,
+    /// Guo, Mirzaei and Roumeliotis's planar method (a ground vehicle's wheel odometry).
+    Planar,
+    /// Daniilidis's dual-quaternion method (6-DoF odometry).
+    SixDof,
+    /// No hand-eye calibration.
+    None,
+}
+
+impl HandEyeArg {
+    /// The calibration options with this hand-eye method.
+    fn options(self) -> CalibrationOptions {
+        let mut options = CalibrationOptions::default();
+        options.hand_eye.method = match self {
+            Self::Auto => HandEyeMethod::Auto,
+            Self::Planar => HandEyeMethod::Planar,
+            Self::SixDof => HandEyeMethod::Daniilidis,
+            Self::None => HandEyeMethod::Skip,
+        };
+        options
+    }
+}
 
 /// Infrastructure-based calibration of multi-camera rigs.
 ///
@@ -62,6 +105,9 @@ pub struct DemoArgs {
     /// No progress bars.
     #[arg(long)]
     pub quiet: bool,
+    /// The hand-eye method between the rig and its odometry.
+    #[arg(long, value_enum, value_name = "METHOD", default_value_t = HandEyeArg::Auto)]
+    pub hand_eye: HandEyeArg,
 }
 
 /// Options of `ibc simulate`.
@@ -105,9 +151,12 @@ pub struct CalibrateArgs {
     /// Print the JSON report on standard output instead of the table.
     #[arg(long)]
     pub json: bool,
-    /// No progress bars.
+    /// No progress bars, and no line on standard error saying where the files went.
     #[arg(long)]
     pub quiet: bool,
+    /// The hand-eye method between the rig and its odometry.
+    #[arg(long, value_enum, value_name = "METHOD", default_value_t = HandEyeArg::Auto)]
+    pub hand_eye: HandEyeArg,
 }
 
 /// Writes `text` to standard output.
@@ -121,13 +170,15 @@ fn print(text: &str) -> Result<(), CliError> {
 ///
 /// # Errors
 /// [`CliError`] naming what failed.
-pub fn run(cli: Cli) -> Result<(), CliError> {
+pub fn run(cli: Cli) -> Result<Outcome, CliError> {
     match cli.command {
         None => demo::run(&cli.demo),
         Some(Command::Demo(args)) => demo::run(&args),
-        Some(Command::Simulate(args)) => simulate::run(&args),
+        Some(Command::Simulate(args)) => simulate::run(&args).map(|()| Outcome::Done),
         Some(Command::Calibrate(args)) => calibrate::run(&args),
-        Some(Command::Scenarios) => print(&ibc_pipeline::sim::scenario_list()),
+        Some(Command::Scenarios) => {
+            print(&ibc_pipeline::sim::scenario_list()).map(|()| Outcome::Done)
+        }
         Some(Command::Intrinsics(args)) => intrinsics::run_command(&args),
     }
 }

@@ -14,8 +14,15 @@
 //!     "rig_from_camera": {"translation": [...], "rotation_wxyz": [...]},
 //!     "rig_from_camera_std": {"translation_m": [...], "rotation_deg": [...]},
 //!     "change_from_prior": {"translation_m": [...], "distance_m": 0.097, "rotation_deg": 0.0},
-//!     "rotation_error_deg": 0.001, "translation_error_deg": 0.01, "translation_error_m": 0.0002
+//!     "rotation_error_deg": 0.001, "translation_error_deg": 0.01, "translation_error_m": 0.0002,
+//!     "inliers": 98000, "correspondences": 50000,
+//!     "reprojection_px": {"initial": {"mean": 0.7, "rms": 0.8, "mad": 0.55},
+//!                         "final": {"mean": 0.62, "rms": 0.7, "mad": 0.5}},
+//!     "outlier_fraction": 0.0,
+//!     "residual_pattern": {"pattern_px": 0.03, "noise_px": 0.01, "chi2_per_dof": 1.1}
 //!   }, ...],
+//!   "status": "ok",
+//!   "warnings": [{"kind": "systematic_residuals", "camera": "left", "message": "..."}],
 //!   "frames": 500, "images": 2000, "images_localized": 1990,
 //!   "frame_sets_used": 480, "mean_poses_per_set": 3.98, "correspondences": 380000,
 //!   "reprojection_error_px": {"initial": 0.8, "final": 0.62, "at_truth": 0.62},
@@ -31,7 +38,8 @@ use nalgebra::{Isometry3, Vector3};
 use serde::Serialize;
 
 use crate::calib::accuracy::relative_to_first;
-use crate::calib::{Calibration, CalibrationError, InitialHypothesis, Timing};
+use crate::calib::quality::{CameraQuality, ResidualPattern, ResidualStats};
+use crate::calib::{Calibration, CalibrationError, InitialHypothesis, Status, Timing};
 use crate::data::GroundTruth;
 
 /// The value of [`Report::format`].
@@ -116,6 +124,91 @@ pub struct CameraJson {
     pub translation_error_deg: Option<f64>,
     /// With ground truth: translation error relative to camera 0, metres.
     pub translation_error_m: Option<f64>,
+    /// Localization inliers over its localized images.
+    pub inliers: usize,
+    /// Its correspondences in the refinement.
+    pub correspondences: usize,
+    /// Its reprojection residuals before and after the refinement.
+    pub reprojection_px: CameraReprojectionJson,
+    /// Share of its refined residuals that are outliers under the Cauchy loss (see
+    /// [`crate::calib::quality`]).
+    pub outlier_fraction: f64,
+    /// The pattern of its refined residuals over the image, `null` when too few to measure.
+    pub residual_pattern: Option<PatternJson>,
+}
+
+/// Statistics of a camera's residuals at one estimate (see [`ResidualStats`]).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct ResidualJson {
+    /// Mean error length, pixels.
+    pub mean: Option<f64>,
+    /// RMS of the error lengths, pixels.
+    pub rms: Option<f64>,
+    /// Robust spread per axis (`1.4826 median |r|`), pixels.
+    pub mad: Option<f64>,
+}
+
+impl From<&ResidualStats> for ResidualJson {
+    fn from(s: &ResidualStats) -> Self {
+        Self {
+            mean: finite(s.mean_px),
+            rms: finite(s.rms_px),
+            mad: finite(s.mad_px),
+        }
+    }
+}
+
+/// A camera's residuals before and after the refinement.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct CameraReprojectionJson {
+    /// At the initial estimate.
+    pub initial: ResidualJson,
+    /// At the refined estimate.
+    pub r#final: ResidualJson,
+}
+
+impl CameraReprojectionJson {
+    fn new(quality: Option<&CameraQuality>) -> Self {
+        let empty = ResidualStats::of(&[]);
+        let (initial, refined) = quality.map_or((&empty, &empty), |q| (&q.initial, &q.refined));
+        Self {
+            initial: initial.into(),
+            r#final: refined.into(),
+        }
+    }
+}
+
+/// The residual pattern of a camera (see [`crate::calib::quality`]).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct PatternJson {
+    /// The count-weighted RMS of the cell means, pixels.
+    pub pattern_px: f64,
+    /// What noise alone gives on average, pixels.
+    pub noise_px: f64,
+    /// `chi^2 / dof` of the cell means (about 1 for noise alone).
+    pub chi2_per_dof: f64,
+}
+
+impl From<ResidualPattern> for PatternJson {
+    fn from(p: ResidualPattern) -> Self {
+        Self {
+            pattern_px: p.pattern_px,
+            noise_px: p.noise_px,
+            chi2_per_dof: p.chi2_per_dof,
+        }
+    }
+}
+
+/// One failed quality gate.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct WarningJson {
+    /// Its kind (`systematic_residuals`, `residual_spread`, `outliers`, `not_converged`,
+    /// `no_covariance`).
+    pub kind: &'static str,
+    /// The camera it names, if any.
+    pub camera: Option<String>,
+    /// The message, with the likely cause.
+    pub message: String,
 }
 
 /// Mean reprojection errors.
@@ -212,6 +305,10 @@ pub struct Report {
     pub refinement: RefinementJson,
     /// The hand-eye calibration, `null` when there was none.
     pub hand_eye: Option<HandEyeJson>,
+    /// `"ok"`, or `"poor"` when a quality gate failed (see `warnings`).
+    pub status: Status,
+    /// The failed quality gates, each naming the camera and the likely cause.
+    pub warnings: Vec<WarningJson>,
     /// Seconds per stage.
     pub timing_s: Timing,
 }
@@ -234,6 +331,7 @@ impl Report {
         let cameras = (0..calibration.cameras.len())
             .map(|c| {
                 let error = accuracy.as_ref().and_then(|a| a.cameras[c]);
+                let quality = calibration.quality.cameras.get(c);
                 let (p, e) = (prior[c], estimate[c]);
                 let moved = e.translation.vector - p.translation.vector;
                 CameraJson {
@@ -252,6 +350,11 @@ impl Report {
                     rotation_error_deg: error.map(|a| a.rotation_error_deg),
                     translation_error_deg: error.map(|a| a.translation_error_deg),
                     translation_error_m: error.map(|a| a.translation_error_m),
+                    inliers: quality.map_or(0, |q| q.inliers),
+                    correspondences: quality.map_or(0, |q| q.observations),
+                    reprojection_px: CameraReprojectionJson::new(quality),
+                    outlier_fraction: quality.map_or(0.0, |q| q.outlier_fraction),
+                    residual_pattern: quality.and_then(|q| q.pattern).map(PatternJson::from),
                 }
             })
             .collect();
@@ -327,6 +430,17 @@ impl Report {
                 final_cost: calibration.refinement.final_cost,
             },
             hand_eye,
+            status: calibration.quality.status(),
+            warnings: calibration
+                .quality
+                .warnings
+                .iter()
+                .map(|w| WarningJson {
+                    kind: w.kind(),
+                    camera: w.camera().map(str::to_owned),
+                    message: w.to_string(),
+                })
+                .collect(),
             timing_s: *t,
         })
     }

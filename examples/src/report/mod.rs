@@ -10,8 +10,9 @@ mod table;
 
 pub use files::{OutputError, calibrated_rig, output_names, write_outputs};
 pub use json::{
-    CameraJson, ChangeJson, HandEyeJson, InitializationJson, PoseJson, PoseStdJson, REPORT_FORMAT,
-    REPORT_VERSION, RefinementJson, Report, ReprojectionJson,
+    CameraJson, CameraReprojectionJson, ChangeJson, HandEyeJson, InitializationJson, PatternJson,
+    PoseJson, PoseStdJson, REPORT_FORMAT, REPORT_VERSION, RefinementJson, Report, ReprojectionJson,
+    ResidualJson, WarningJson,
 };
 pub use svg::{error_histogram_svg, top_view_svg};
 pub use table::text_table;

@@ -8,6 +8,7 @@ use std::fmt::Write as _;
 use nalgebra::{Quaternion, UnitQuaternion};
 
 use super::json::{PoseJson, Report};
+use crate::calib::quality::is_listed_change;
 
 fn num(v: Option<f64>, scale: f64, decimals: usize) -> String {
     v.map_or_else(|| "-".to_owned(), |v| format!("{:.*}", decimals, v * scale))
@@ -23,6 +24,55 @@ fn rotation_vector_deg(p: &PoseJson) -> [f64; 3] {
 
 fn max_std(v: &[Option<f64>; 3]) -> Option<f64> {
     v.iter().try_fold(0.0f64, |m, x| x.map(|x| m.max(x)))
+}
+
+/// The per-camera quality block, then the status and the warnings.
+fn quality_rows(s: &mut String, report: &Report) {
+    let _ = writeln!(
+        s,
+        "{:<12} {:>11} {:>9} {:>9} {:>15} {:>15} {:>8} {:>8}",
+        "camera",
+        "localized",
+        "inliers",
+        "corresp.",
+        "rms [px] b / a",
+        "mad [px] b / a",
+        "outliers",
+        "pattern"
+    );
+    for c in &report.cameras {
+        let r = &c.reprojection_px;
+        let _ = writeln!(
+            s,
+            "{:<12} {:>11} {:>9} {:>9} {:>15} {:>15} {:>7.1}% {:>8}",
+            c.name,
+            format!("{}/{}", c.images_localized, report.frames),
+            c.inliers,
+            c.correspondences,
+            format!(
+                "{} / {}",
+                num(r.initial.rms, 1.0, 3),
+                num(r.r#final.rms, 1.0, 3)
+            ),
+            format!(
+                "{} / {}",
+                num(r.initial.mad, 1.0, 3),
+                num(r.r#final.mad, 1.0, 3)
+            ),
+            c.outlier_fraction * 100.0,
+            num(c.residual_pattern.as_ref().map(|p| p.pattern_px), 1.0, 3)
+        );
+    }
+    let _ = writeln!(
+        s,
+        "(b / a: before / after refinement; mad: robust spread per axis; outliers: errors the \
+         Cauchy loss cuts below a tenth of their weight; pattern: residual offset over the \
+         image, px)"
+    );
+    let _ = writeln!(s, "status: {}", report.status.name());
+    for w in &report.warnings {
+        let _ = writeln!(s, "warning: {}", w.message);
+    }
 }
 
 /// The text summary (see the module docs).
@@ -108,11 +158,23 @@ pub fn text_table(report: &Report) -> String {
         .cameras
         .iter()
         .filter(|c| {
-            c.change_from_prior.distance_m > 0.005 || c.change_from_prior.rotation_deg > 0.5
+            is_listed_change((
+                c.change_from_prior.distance_m,
+                c.change_from_prior.rotation_deg,
+            ))
         })
         .map(|c| {
+            let doubt = if report
+                .warnings
+                .iter()
+                .any(|w| w.camera.as_ref() == Some(&c.name))
+            {
+                " (doubtful: see the warnings)"
+            } else {
+                ""
+            };
             format!(
-                "{} moved {:.2} cm and turned {:.2} deg",
+                "{} moved {:.2} cm and turned {:.2} deg{doubt}",
                 c.name,
                 c.change_from_prior.distance_m * 100.0,
                 c.change_from_prior.rotation_deg
@@ -122,6 +184,8 @@ pub fn text_table(report: &Report) -> String {
     if !moved.is_empty() {
         let _ = writeln!(s, "changed since the camera file: {}", moved.join("; "));
     }
+    let _ = writeln!(s);
+    quality_rows(&mut s, report);
     let _ = writeln!(s);
     match &report.hand_eye {
         None => {
