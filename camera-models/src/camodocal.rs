@@ -1,5 +1,13 @@
-//! CamOdoCal files: the per-camera YAML (`<name>_camera_calib.yaml`) and the rig's
-//! `extrinsic.txt`.
+//! CamOdoCal files: the per-camera YAML and the rig's `extrinsic.txt`.
+//!
+//! File names. CamOdoCal's `CameraSystem` (`readFromDirectory` / `writeToDirectory`) keeps a
+//! rig in a folder: [`EXTRINSIC_FILE_NAME`] (`extrinsic.txt`) and, for each camera name listed
+//! there, [`calib_file_name`] (`<name>_calib.yaml`). A camera without a name is listed and
+//! filed as `camera_<i>` (`camera_<i>_calib.yaml`), and its YAML's `camera_name` is then
+//! empty. CamOdoCal's intrinsic calibration tool writes [`camera_calib_file_name`]
+//! (`<name>_camera_calib.yaml`).
+//! [`Rig::read_camodocal_dir`](crate::Rig::read_camodocal_dir) reads either name;
+//! [`Rig::write_camodocal_dir`](crate::Rig::write_camodocal_dir) writes `CameraSystem`'s.
 //!
 //! The camera YAML is OpenCV `FileStorage` output: a `%YAML:1.0` line (not a valid YAML 1.2
 //! directive; the reader drops it), `---`, then:
@@ -22,7 +30,15 @@
 //!
 //! `extrinsic.txt` lists, per camera, its name, three rows of four numbers (the top of the 4x4
 //! matrix of CamOdoCal's "global camera pose", which maps camera coordinates into the rig
-//! frame: our `rig_from_camera`), and a blank line.
+//! frame: our `rig_from_camera`), and a blank line. `CameraSystem` reads it by counting lines
+//! in fives (name, three rows, one line skipped) and takes the first word of the name line, so
+//! the writer emits exactly those five lines per camera; the reader here also skips extra
+//! blank lines.
+//!
+//! Reading is bounded (regular files of at most [`MAX_FILE_BYTES`](crate::MAX_FILE_BYTES), no
+//! YAML aliases), and a camera read from a file must be plausible
+//! ([`Camera::check_plausible`]). Errors of the readers that take a path name the file
+//! ([`FileError::InFile`]).
 
 use std::path::Path;
 
@@ -30,9 +46,26 @@ use nalgebra::{Isometry3, Matrix3, Vector3};
 
 use crate::camera::Camera;
 use crate::error::{FileError, ParameterError};
+use crate::input;
 use crate::model::CameraModel;
 use crate::yaml::{self, fmt_f64, fmt_str};
 use crate::{KannalaBrandt, PinholeRadtan, Unified};
+
+/// The rig file of a CamOdoCal rig folder: `extrinsic.txt`.
+pub const EXTRINSIC_FILE_NAME: &str = "extrinsic.txt";
+
+/// The file name CamOdoCal's `CameraSystem` gives a camera's YAML in a rig folder:
+/// `<name>_calib.yaml` (what [`Rig::write_camodocal_dir`](crate::Rig::write_camodocal_dir)
+/// writes).
+pub fn calib_file_name(camera_name: &str) -> String {
+    format!("{camera_name}_calib.yaml")
+}
+
+/// The file name CamOdoCal's intrinsic calibration tool gives a camera's YAML:
+/// `<name>_camera_calib.yaml` (read in a rig folder too).
+pub fn camera_calib_file_name(camera_name: &str) -> String {
+    format!("{camera_name}_camera_calib.yaml")
+}
 
 /// A camera with the name its file gives it.
 #[derive(Clone, Debug, PartialEq)]
@@ -50,11 +83,12 @@ fn params_error(name: &str) -> impl FnOnce(ParameterError) -> FileError + '_ {
     }
 }
 
-/// Parse a CamOdoCal camera YAML.
+/// Parse a CamOdoCal camera YAML and check that the camera is plausible.
 ///
 /// # Errors
-/// [`FileError`] for malformed YAML, a missing or mistyped key, an unknown model, or
-/// parameters that are not a valid camera.
+/// [`FileError`] for malformed YAML (or YAML with aliases), a missing or mistyped key, an
+/// unknown model, parameters that are not a valid camera
+/// ([`FileError::Parameters`]) or not a plausible one ([`FileError::Implausible`]).
 pub fn parse_camera(text: &str) -> Result<NamedCamera, FileError> {
     let doc = yaml::parse(text)?;
     let model = yaml::string(yaml::get(&doc, "", "model_type")?, "model_type")?;
@@ -111,6 +145,12 @@ pub fn parse_camera(text: &str) -> Result<NamedCamera, FileError> {
         }
         _ => return Err(FileError::UnknownModel { name: model }),
     };
+    camera
+        .check_plausible()
+        .map_err(|source| FileError::Implausible {
+            camera: name.clone(),
+            source,
+        })?;
     Ok(NamedCamera { name, camera })
 }
 
@@ -201,12 +241,15 @@ pub fn format_camera(name: &str, camera: &Camera) -> String {
     s
 }
 
-/// Read a CamOdoCal camera YAML file.
+/// Read a CamOdoCal camera YAML file (a regular file of at most
+/// [`MAX_FILE_BYTES`](crate::MAX_FILE_BYTES)).
 ///
 /// # Errors
-/// As [`parse_camera`], or [`FileError::Io`].
+/// [`FileError::Io`], [`FileError::NotRegularFile`] or [`FileError::TooLarge`], or an error of
+/// [`parse_camera`] wrapped in [`FileError::InFile`] with the path.
 pub fn read_camera(path: impl AsRef<Path>) -> Result<NamedCamera, FileError> {
-    parse_camera(&yaml::read_text(path.as_ref())?)
+    let path = path.as_ref();
+    parse_camera(&input::read_text(path)?).map_err(|e| e.in_file(path))
 }
 
 /// Write a CamOdoCal camera YAML file atomically.
@@ -265,7 +308,8 @@ pub fn parse_extrinsics(text: &str) -> Result<Vec<(String, Isometry3<f64>)>, Fil
     Ok(out)
 }
 
-/// Format `extrinsic.txt` (17 significant digits).
+/// Format `extrinsic.txt` (17 significant digits): per camera, exactly five lines (the name,
+/// three rows of four numbers, a blank line), as `CameraSystem`'s line-counting reader expects.
 pub fn format_extrinsics<'a>(
     poses: impl IntoIterator<Item = (&'a str, &'a Isometry3<f64>)>,
 ) -> String {

@@ -12,12 +12,21 @@
 //!   rostopic: /topic                          (optional, kept)
 //!   cam_overlaps: [i, j, ...]                 (optional, kept)
 //!   T_cn_cnm1: 4x4 rows                       (camN > 0: maps cam(N-1) coordinates into camN)
+//!   T_cam_imu: 4x4 rows                       (camchain-imucam, optional, kept: maps IMU
+//!                                              coordinates into the camera)
+//!   timeshift_cam_imu: seconds                (camchain-imucam, optional, kept:
+//!                                              t_imu = t_cam + shift)
 //! ```
 //!
 //! `pinhole` + `radtan` (or `none`) is [`PinholeRadtan`], `pinhole` + `equidistant` is
 //! [`KannalaBrandt`] (Kalibr applies the equidistant polynomial to atan of the z = 1 radius,
-//! which is the same map for z > 0), `omni` + `radtan` (or `none`) is [`Unified`]. Other keys
-//! (`T_cam_imu`, `timeshift_cam_imu`) are ignored.
+//! which is the same map for z > 0), `omni` + `radtan` (or `none`) is [`Unified`]. `T_cam_imu`
+//! is read into [`RigCamera::camera_from_imu`] (a rigid transform, checked as `T_cn_cnm1` is)
+//! and `timeshift_cam_imu` into [`RigCamera::timeshift_cam_imu_s`] (a finite number); both are
+//! written back when present. Other keys are ignored. Every camera must be plausible
+//! ([`Camera::check_plausible`]); the file is read bounded (a regular file of at most
+//! [`MAX_FILE_BYTES`](crate::MAX_FILE_BYTES), no YAML aliases), and
+//! [`Rig::read_kalibr`] names the file in its errors ([`FileError::InFile`]).
 //!
 //! Reading chains `T_cn_cnm1` into `rig_from_camera` with cam0 as the rig frame. Writing stores
 //! only relative poses (`camN_from_rig * rig_from_cam(N-1)`), so a rig whose frame is not cam0
@@ -32,6 +41,7 @@ use yaml_rust2::Yaml;
 use crate::camera::Camera;
 use crate::camodocal::isometry_from_rows;
 use crate::error::FileError;
+use crate::input;
 use crate::model::CameraModel;
 use crate::rig::{Rig, RigCamera};
 use crate::yaml::{self, fmt_f64, fmt_str};
@@ -43,8 +53,10 @@ impl Rig {
     /// Parse a Kalibr camchain.
     ///
     /// # Errors
-    /// [`FileError`] for malformed YAML, missing or mistyped keys, an unsupported model, a
-    /// non-rigid `T_cn_cnm1`, or camera keys that do not run `cam0, cam1, ...`.
+    /// [`FileError`] for malformed YAML (or YAML with aliases), missing or mistyped keys, an
+    /// unsupported model, an invalid ([`FileError::Parameters`]) or implausible
+    /// ([`FileError::Implausible`]) camera, a non-rigid `T_cn_cnm1` or `T_cam_imu`, a
+    /// non-finite `timeshift_cam_imu`, or camera keys that do not run `cam0, cam1, ...`.
     pub fn from_kalibr_str(text: &str) -> Result<Self, FileError> {
         let doc = yaml::parse(text)?;
         let Yaml::Hash(h) = &doc else {
@@ -69,6 +81,12 @@ impl Rig {
                 message: format!("{cam_keys} camera keys but no `{key}`: keys must be cam0..camN"),
             })?;
             let camera = parse_camera(node, &key)?;
+            camera
+                .check_plausible()
+                .map_err(|source| FileError::Implausible {
+                    camera: key.clone(),
+                    source,
+                })?;
             let rig_from_camera = match cameras.last() {
                 None => Isometry3::identity(),
                 Some(prev) => {
@@ -100,35 +118,60 @@ impl Rig {
                     });
                 }
             };
+            let camera_from_imu = yaml::get_opt(node, "T_cam_imu")
+                .map(|t| parse_transform(t, &yaml::join(&key, "T_cam_imu")))
+                .transpose()?;
+            let timeshift_cam_imu_s = yaml::get_opt(node, "timeshift_cam_imu")
+                .map(|t| {
+                    let k = yaml::join(&key, "timeshift_cam_imu");
+                    yaml::number(t, &k)
+                        .ok()
+                        .filter(|s| s.is_finite())
+                        .ok_or(FileError::WrongType {
+                            key: k,
+                            expected: "a finite number of seconds",
+                        })
+                })
+                .transpose()?;
             cameras.push(RigCamera {
                 name: key,
                 camera,
                 rig_from_camera,
                 topic,
                 overlaps,
+                camera_from_imu,
+                timeshift_cam_imu_s,
             });
         }
         Ok(Self { cameras })
     }
 
-    /// Format as a Kalibr camchain (17 significant digits).
+    /// Format as a Kalibr camchain (17 significant digits), keys in Kalibr's (sorted) order;
+    /// `T_cam_imu` and `timeshift_cam_imu` are written for the cameras that have them (a
+    /// `camchain-imucam.yaml`).
     pub fn to_kalibr_string(&self) -> String {
         let mut s = String::new();
         let list = |v: &[f64]| {
             let items: Vec<String> = v.iter().map(|x| fmt_f64(*x)).collect();
             format!("[{}]", items.join(", "))
         };
+        let matrix = |s: &mut String, key: &str, t: &Isometry3<f64>| {
+            let h = t.to_homogeneous();
+            s.push_str(&format!("  {key}:\n"));
+            for r in 0..4 {
+                let row: Vec<f64> = (0..4).map(|k| h[(r, k)]).collect();
+                s.push_str(&format!("  - {}\n", list(&row)));
+            }
+        };
         for (i, c) in self.cameras.iter().enumerate() {
             s.push_str(&format!("cam{i}:\n"));
+            if let Some(camera_from_imu) = &c.camera_from_imu {
+                matrix(&mut s, "T_cam_imu", camera_from_imu);
+            }
             if i > 0 {
                 let cn_from_cnm1 =
                     c.rig_from_camera.inverse() * self.cameras[i - 1].rig_from_camera;
-                let h = cn_from_cnm1.to_homogeneous();
-                s.push_str("  T_cn_cnm1:\n");
-                for r in 0..4 {
-                    let row: Vec<f64> = (0..4).map(|k| h[(r, k)]).collect();
-                    s.push_str(&format!("  - {}\n", list(&row)));
-                }
+                matrix(&mut s, "T_cn_cnm1", &cn_from_cnm1);
             }
             let overlaps: Vec<String> = c.overlaps.iter().map(ToString::to_string).collect();
             s.push_str(&format!("  cam_overlaps: [{}]\n", overlaps.join(", ")));
@@ -174,16 +217,23 @@ impl Rig {
             if let Some(topic) = &c.topic {
                 s.push_str(&format!("  rostopic: {}\n", fmt_str(topic)));
             }
+            if let Some(shift) = c.timeshift_cam_imu_s {
+                s.push_str(&format!("  timeshift_cam_imu: {}\n", fmt_f64(shift)));
+            }
         }
         s
     }
 
-    /// Read a Kalibr camchain file.
+    /// Read a Kalibr camchain file (a regular file of at most
+    /// [`MAX_FILE_BYTES`](crate::MAX_FILE_BYTES)).
     ///
     /// # Errors
-    /// As [`from_kalibr_str`](Self::from_kalibr_str), or [`FileError::Io`].
+    /// [`FileError::Io`], [`FileError::NotRegularFile`] or [`FileError::TooLarge`], or an
+    /// error of [`from_kalibr_str`](Self::from_kalibr_str) wrapped in [`FileError::InFile`]
+    /// with the path.
     pub fn read_kalibr(path: impl AsRef<Path>) -> Result<Self, FileError> {
-        Self::from_kalibr_str(&yaml::read_text(path.as_ref())?)
+        let path = path.as_ref();
+        Self::from_kalibr_str(&input::read_text(path)?).map_err(|e| e.in_file(path))
     }
 
     /// Write a Kalibr camchain file atomically.

@@ -1,13 +1,19 @@
 //! A multi-camera rig: named cameras with their extrinsics, read and written in CamOdoCal and
 //! Kalibr formats.
+//!
+//! A CamOdoCal rig folder holds [`EXTRINSIC_FILE_NAME`](camodocal::EXTRINSIC_FILE_NAME) and a
+//! YAML per camera named there: `<name>_calib.yaml` (CamOdoCal's `CameraSystem`, which
+//! [`Rig::write_camodocal_dir`] writes) or `<name>_camera_calib.yaml` (CamOdoCal's intrinsic
+//! calibration tool); [`Rig::read_camodocal_dir`] reads either.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use nalgebra::Isometry3;
 
 use crate::camera::Camera;
 use crate::camodocal;
 use crate::error::FileError;
+use crate::input;
 use crate::yaml;
 
 /// One camera of a rig.
@@ -28,10 +34,28 @@ pub struct RigCamera {
     /// Kalibr `cam_overlaps` (indices of the cameras that share a view), kept for round trips.
     #[cfg_attr(feature = "serde", serde(default))]
     pub overlaps: Vec<usize>,
+    /// Kalibr `T_cam_imu` (`camchain-imucam.yaml`): maps IMU coordinates into this camera.
+    /// Serialized like `rig_from_camera`, omitted when absent.
+    #[cfg_attr(
+        feature = "serde",
+        serde(
+            default,
+            with = "pose_serde_opt",
+            skip_serializing_if = "Option::is_none"
+        )
+    )]
+    pub camera_from_imu: Option<Isometry3<f64>>,
+    /// Kalibr `timeshift_cam_imu` in seconds (`camchain-imucam.yaml`): the IMU time of an image
+    /// is its camera timestamp plus this shift, `t_imu = t_cam + shift`.
+    #[cfg_attr(
+        feature = "serde",
+        serde(default, skip_serializing_if = "Option::is_none")
+    )]
+    pub timeshift_cam_imu_s: Option<f64>,
 }
 
 impl RigCamera {
-    /// A camera with no Kalibr metadata.
+    /// A camera with no Kalibr metadata (no topic, overlaps, IMU transform or time shift).
     pub fn new(name: impl Into<String>, camera: Camera, rig_from_camera: Isometry3<f64>) -> Self {
         Self {
             name: name.into(),
@@ -39,6 +63,8 @@ impl RigCamera {
             rig_from_camera,
             topic: None,
             overlaps: Vec::new(),
+            camera_from_imu: None,
+            timeshift_cam_imu_s: None,
         }
     }
 }
@@ -90,40 +116,67 @@ impl Rig {
         Ok(())
     }
 
-    /// Read a CamOdoCal rig directory: `extrinsic.txt` and, for every camera named there,
-    /// `<name>_camera_calib.yaml`.
+    /// Read a CamOdoCal rig directory: [`EXTRINSIC_FILE_NAME`](camodocal::EXTRINSIC_FILE_NAME)
+    /// and, for every camera named there, its YAML:
+    /// [`calib_file_name`](camodocal::calib_file_name) (`<name>_calib.yaml`, CamOdoCal's
+    /// `CameraSystem`) or [`camera_calib_file_name`](camodocal::camera_calib_file_name)
+    /// (`<name>_camera_calib.yaml`, CamOdoCal's intrinsic calibration tool). When both exist
+    /// they must describe the same camera. A YAML whose `camera_name` is empty (as
+    /// `CameraSystem` writes a camera it lists as `camera_<i>`) takes its name from
+    /// `extrinsic.txt`. Every camera must be plausible ([`Camera::check_plausible`]).
     ///
     /// # Errors
-    /// [`FileError`] for a missing or malformed file, or a camera YAML whose `camera_name`
-    /// differs from its name in `extrinsic.txt`.
+    /// [`FileError`] naming the file at fault (wrapped in [`FileError::InFile`] unless the
+    /// error names it already): a missing, unreadable or malformed file, a camera with no YAML
+    /// under either name, a YAML whose non-empty `camera_name` differs from its name in
+    /// `extrinsic.txt`, duplicate names or names with a path separator;
+    /// [`FileError::ConflictingCameraFiles`] when the two YAML files of a camera disagree.
     pub fn read_camodocal_dir(dir: impl AsRef<Path>) -> Result<Self, FileError> {
         let dir = dir.as_ref();
-        let poses = camodocal::parse_extrinsics(&yaml::read_text(&dir.join("extrinsic.txt"))?)?;
+        let extrinsic = dir.join(camodocal::EXTRINSIC_FILE_NAME);
+        let poses = camodocal::parse_extrinsics(&input::read_text(&extrinsic)?)
+            .map_err(|e| e.in_file(&extrinsic))?;
         let mut cameras = Vec::with_capacity(poses.len());
         for (name, rig_from_camera) in poses {
-            let named = camodocal::read_camera(dir.join(format!("{name}_camera_calib.yaml")))?;
-            if named.name != name {
+            if name.contains(['/', '\\']) {
                 return Err(FileError::Rig {
-                    message: format!(
-                        "`{name}_camera_calib.yaml` names its camera `{}`",
-                        named.name
-                    ),
-                });
+                    message: format!("camera name `{name}` contains a path separator"),
+                }
+                .in_file(&extrinsic));
             }
-            cameras.push(RigCamera::new(name, named.camera, rig_from_camera));
+            let camera = read_camodocal_camera(dir, &extrinsic, &name)?;
+            cameras.push(RigCamera::new(name, camera, rig_from_camera));
         }
         let rig = Self { cameras };
-        rig.check_names()?;
+        rig.check_names().map_err(|e| e.in_file(&extrinsic))?;
         Ok(rig)
     }
 
-    /// Write a CamOdoCal rig directory (created if needed): `<name>_camera_calib.yaml` per
-    /// camera, then `extrinsic.txt`, each atomically.
+    /// Write a CamOdoCal rig directory (created if needed) in CamOdoCal `CameraSystem`'s
+    /// layout, so its `readFromDirectory` reads it: [`calib_file_name`](camodocal::calib_file_name)
+    /// (`<name>_calib.yaml`) per camera, then
+    /// [`EXTRINSIC_FILE_NAME`](camodocal::EXTRINSIC_FILE_NAME) (five lines per camera), each
+    /// atomically. A `<name>_camera_calib.yaml` already in the folder is left alone; if it
+    /// describes another camera, [`read_camodocal_dir`](Self::read_camodocal_dir) will refuse
+    /// the folder as ambiguous.
     ///
     /// # Errors
-    /// [`FileError`] for duplicate names or an I/O failure.
+    /// [`FileError::Rig`] for duplicate or empty names, or names with white space (which
+    /// `CameraSystem` would cut at the first word) or a path separator; [`FileError::Io`].
     pub fn write_camodocal_dir(&self, dir: impl AsRef<Path>) -> Result<(), FileError> {
         self.check_names()?;
+        if let Some(c) = self.cameras.iter().find(|c| {
+            c.name
+                .contains(|ch: char| ch.is_whitespace() || ch == '/' || ch == '\\')
+        }) {
+            return Err(FileError::Rig {
+                message: format!(
+                    "camera name `{}` has white space or a path separator, which a CamOdoCal \
+                     rig folder cannot hold",
+                    c.name
+                ),
+            });
+        }
         let dir = dir.as_ref();
         std::fs::create_dir_all(dir).map_err(|source| FileError::Io {
             path: dir.to_owned(),
@@ -131,7 +184,7 @@ impl Rig {
         })?;
         for c in &self.cameras {
             camodocal::write_camera(
-                dir.join(format!("{}_camera_calib.yaml", c.name)),
+                dir.join(camodocal::calib_file_name(&c.name)),
                 &c.name,
                 &c.camera,
             )?;
@@ -141,7 +194,60 @@ impl Rig {
                 .iter()
                 .map(|c| (c.name.as_str(), &c.rig_from_camera)),
         );
-        yaml::write_atomic(&dir.join("extrinsic.txt"), &text)
+        yaml::write_atomic(&dir.join(camodocal::EXTRINSIC_FILE_NAME), &text)
+    }
+}
+
+/// The camera `name` of a CamOdoCal rig folder, from `<name>_calib.yaml` or
+/// `<name>_camera_calib.yaml` (both, if both exist, describing the same camera).
+fn read_camodocal_camera(dir: &Path, extrinsic: &Path, name: &str) -> Result<Camera, FileError> {
+    let candidates = [
+        dir.join(camodocal::calib_file_name(name)),
+        dir.join(camodocal::camera_calib_file_name(name)),
+    ];
+    let mut found: Vec<(PathBuf, Camera)> = Vec::with_capacity(2);
+    for path in candidates {
+        match std::fs::metadata(&path) {
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => continue,
+            Err(source) => return Err(FileError::Io { path, source }),
+            Ok(_) => {}
+        }
+        let named = camodocal::read_camera(&path)?;
+        // CamOdoCal writes an unnamed camera with an empty `camera_name`.
+        if !named.name.is_empty() && named.name != name {
+            return Err(FileError::Rig {
+                message: format!(
+                    "the file names its camera `{}`, but {} names it `{name}`",
+                    named.name,
+                    camodocal::EXTRINSIC_FILE_NAME
+                ),
+            }
+            .in_file(&path));
+        }
+        found.push((path, named.camera));
+    }
+    match <[_; 2]>::try_from(found) {
+        Ok([(first, a), (second, b)]) => {
+            if a == b {
+                Ok(a)
+            } else {
+                Err(FileError::ConflictingCameraFiles {
+                    camera: name.to_owned(),
+                    first,
+                    second,
+                })
+            }
+        }
+        Err(mut found) => found.pop().map(|(_, c)| c).ok_or_else(|| {
+            FileError::Rig {
+                message: format!(
+                    "camera `{name}` has no file next to it: neither {} nor {} exists",
+                    camodocal::calib_file_name(name),
+                    camodocal::camera_calib_file_name(name)
+                ),
+            }
+            .in_file(extrinsic)
+        }),
     }
 }
 
@@ -152,37 +258,67 @@ mod pose_serde {
 
     #[derive(Serialize, Deserialize)]
     #[serde(deny_unknown_fields)]
-    struct Pose {
+    pub(super) struct Pose {
         rotation_wxyz: [f64; 4],
         translation: [f64; 3],
     }
 
-    pub fn serialize<S: Serializer>(p: &Isometry3<f64>, s: S) -> Result<S::Ok, S::Error> {
+    pub(super) fn to_pose(p: &Isometry3<f64>) -> Pose {
         let q = p.rotation.quaternion();
         let t = p.translation.vector;
         Pose {
             rotation_wxyz: [q.w, q.i, q.j, q.k],
             translation: [t.x, t.y, t.z],
         }
-        .serialize(s)
     }
 
-    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Isometry3<f64>, D::Error> {
-        let p = Pose::deserialize(d)?;
+    pub(super) fn from_pose(p: &Pose) -> Result<Isometry3<f64>, &'static str> {
         let [w, x, y, z] = p.rotation_wxyz;
         let q = Quaternion::new(w, x, y, z);
         let n = q.norm();
         if !n.is_finite() || (n - 1.0).abs() > 1e-6 || !p.translation.iter().all(|v| v.is_finite())
         {
-            return Err(serde::de::Error::custom(
+            return Err(
                 "rotation_wxyz must be a finite unit quaternion (norm within 1e-6 of 1) and the \
                  translation finite",
-            ));
+            );
         }
         let [tx, ty, tz] = p.translation;
         Ok(Isometry3::from_parts(
             Translation3::new(tx, ty, tz),
             UnitQuaternion::from_quaternion(q),
         ))
+    }
+
+    pub fn serialize<S: Serializer>(p: &Isometry3<f64>, s: S) -> Result<S::Ok, S::Error> {
+        to_pose(p).serialize(s)
+    }
+
+    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Isometry3<f64>, D::Error> {
+        from_pose(&Pose::deserialize(d)?).map_err(serde::de::Error::custom)
+    }
+}
+
+/// [`pose_serde`] for an optional pose (`null` or absent is `None`).
+#[cfg(feature = "serde")]
+mod pose_serde_opt {
+    use nalgebra::Isometry3;
+    use serde::{Deserialize, Deserializer, Serialize, Serializer};
+
+    use super::pose_serde::{Pose, from_pose, to_pose};
+
+    #[allow(clippy::ref_option)] // serde's `with` passes `&Option<T>`
+    pub fn serialize<S: Serializer>(p: &Option<Isometry3<f64>>, s: S) -> Result<S::Ok, S::Error> {
+        p.as_ref().map(to_pose).serialize(s)
+    }
+
+    pub fn deserialize<'de, D: Deserializer<'de>>(
+        d: D,
+    ) -> Result<Option<Isometry3<f64>>, D::Error> {
+        Option::<Pose>::deserialize(d)?
+            .as_ref()
+            .map(from_pose)
+            .transpose()
+            .map_err(serde::de::Error::custom)
     }
 }

@@ -1,15 +1,30 @@
 //! YAML reading helpers (on yaml-rust2's DOM) that name the key at fault, number formatting
 //! for writers, and atomic file writes.
+//!
+//! Before the DOM is built, the text is run through yaml-rust2's event parser alone, which
+//! holds no document: an alias (`*name`) is refused there ([`FileError::YamlAlias`]), because
+//! the loader copies the aliased node at every use (a 335-byte "billion laughs" file of nine
+//! levels of nine aliases grew to 8 GB in 60 s); so is nesting deeper than [`MAX_YAML_DEPTH`]
+//! ([`FileError::YamlTooDeep`]). Anchors alone are harmless and accepted.
 
 use std::io::Write;
 use std::path::Path;
 
+use yaml_rust2::parser::{Event, Parser};
+use yaml_rust2::scanner::ScanError;
 use yaml_rust2::{Yaml, YamlLoader};
 
 use crate::error::FileError;
 
+/// The deepest nesting of sequences and mappings accepted: 32. The deepest real camera file
+/// nests 4 levels (document, `camN`, `T_cn_cnm1`, a row); without a bound, 600 kB of
+/// `- - - ...` (300 000 levels) overflows the stack in yaml-rust2's loader and aborts the
+/// process (measured with yaml-rust2 0.13).
+pub const MAX_YAML_DEPTH: usize = 32;
+
 /// Parse the first YAML document of `text`. Leading `%` directive lines are dropped first:
 /// OpenCV (and so CamOdoCal) writes `%YAML:1.0`, which is not a valid YAML 1.2 directive.
+/// Line numbers in errors count the dropped lines, so they are lines of `text`.
 pub fn parse(text: &str) -> Result<Yaml, FileError> {
     let mut body = text.trim_start_matches('\u{feff}');
     loop {
@@ -21,12 +36,54 @@ pub fn parse(text: &str) -> Result<Yaml, FileError> {
             break;
         }
     }
-    let docs = YamlLoader::load_from_str(body).map_err(|e| FileError::Yaml {
-        message: e.to_string(),
-    })?;
+    // `body` is a suffix of `text`: the lines before it were dropped.
+    let dropped_lines = text[..text.len() - body.len()].matches('\n').count();
+    check_events(body, dropped_lines)?;
+    let docs = YamlLoader::load_from_str(body).map_err(|e| syntax_error(&e, dropped_lines))?;
     match docs.into_iter().next() {
         None | Some(Yaml::Null) => Err(FileError::Empty),
         Some(doc) => Ok(doc),
+    }
+}
+
+/// Run the event parser over `body` (which holds no document, so it takes no memory beyond
+/// the current event) and refuse the first alias and any nesting deeper than
+/// [`MAX_YAML_DEPTH`].
+fn check_events(body: &str, dropped_lines: usize) -> Result<(), FileError> {
+    let mut parser = Parser::new_from_str(body);
+    let mut depth = 0usize;
+    loop {
+        let (event, mark) = parser
+            .next_token()
+            .map_err(|e| syntax_error(&e, dropped_lines))?;
+        let line = mark.line() + dropped_lines;
+        match event {
+            Event::StreamEnd => return Ok(()),
+            Event::Alias(_) => return Err(FileError::YamlAlias { line }),
+            Event::SequenceStart(..) | Event::MappingStart(..) => {
+                depth += 1;
+                if depth > MAX_YAML_DEPTH {
+                    return Err(FileError::YamlTooDeep {
+                        line,
+                        limit: MAX_YAML_DEPTH,
+                    });
+                }
+            }
+            Event::SequenceEnd | Event::MappingEnd => depth = depth.saturating_sub(1),
+            _ => {}
+        }
+    }
+}
+
+/// A syntax error with its line counted in the original text.
+fn syntax_error(e: &ScanError, dropped_lines: usize) -> FileError {
+    FileError::Yaml {
+        message: format!(
+            "{} at line {} column {}",
+            e.info(),
+            e.marker().line() + dropped_lines,
+            e.marker().col() + 1
+        ),
     }
 }
 
@@ -194,12 +251,4 @@ pub fn write_atomic(path: &Path, contents: &str) -> Result<(), FileError> {
     tmp.as_file().sync_all().map_err(io)?;
     tmp.persist(path).map_err(|e| io(e.error))?;
     Ok(())
-}
-
-/// Read a whole text file.
-pub fn read_text(path: &Path) -> Result<String, FileError> {
-    std::fs::read_to_string(path).map_err(|source| FileError::Io {
-        path: path.to_owned(),
-        source,
-    })
 }

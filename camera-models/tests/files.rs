@@ -47,12 +47,14 @@ projection_parameters:
    v0: 3.9500100000000003e+02
 ";
 
+/// The TrimBot2020 camchain (`tests/data/README.md`).
+const TRIMBOT: &str = concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/tests/data/trimbot-camchain.yaml"
+);
+
 fn trimbot() -> String {
-    let path = concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../../shared/fixtures/trimbot-camchain.yaml"
-    );
-    std::fs::read_to_string(path).expect("the shared Kalibr fixture")
+    std::fs::read_to_string(TRIMBOT).expect("the Kalibr fixture in tests/data")
 }
 
 #[test]
