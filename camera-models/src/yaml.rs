@@ -9,6 +9,7 @@
 
 use std::io::Write;
 use std::path::Path;
+use std::sync::atomic::{AtomicU64, Ordering};
 
 use yaml_rust2::parser::{Event, Parser};
 use yaml_rust2::scanner::ScanError;
@@ -235,8 +236,13 @@ pub fn fmt_str(s: &str) -> String {
     out
 }
 
-/// Write `contents` to `path` atomically: a temporary file in the same folder, flushed and
-/// synced, then renamed over the target.
+/// Distinguishes the temporary files of one process.
+static NEXT_TEMPORARY: AtomicU64 = AtomicU64::new(0);
+
+/// Write `contents` to `path` atomically: a hidden temporary file in the same folder
+/// (`.<name>.tmp-<pid>-<n>`), created with mode `0666` less the umask as any program creates
+/// files (temporary-file libraries use `0600`, which other accounts cannot read), synced, then
+/// renamed over the target; removed again on error.
 pub fn write_atomic(path: &Path, contents: &str) -> Result<(), FileError> {
     let io = |source| FileError::Io {
         path: path.to_owned(),
@@ -246,9 +252,25 @@ pub fn write_atomic(path: &Path, contents: &str) -> Result<(), FileError> {
         Some(d) if !d.as_os_str().is_empty() => d,
         _ => Path::new("."),
     };
-    let mut tmp = tempfile::NamedTempFile::new_in(dir).map_err(io)?;
-    tmp.write_all(contents.as_bytes()).map_err(io)?;
-    tmp.as_file().sync_all().map_err(io)?;
-    tmp.persist(path).map_err(|e| io(e.error))?;
+    let name = path.file_name().map_or_else(
+        || std::borrow::Cow::Borrowed("file"),
+        |n| n.to_string_lossy(),
+    );
+    let n = NEXT_TEMPORARY.fetch_add(1, Ordering::Relaxed);
+    let tmp = dir.join(format!(".{name}.tmp-{}-{n}", std::process::id()));
+    let written = (|| {
+        let mut file = std::fs::OpenOptions::new()
+            .write(true)
+            .create_new(true)
+            .open(&tmp)?;
+        file.write_all(contents.as_bytes())?;
+        file.sync_all()?;
+        std::fs::rename(&tmp, path)
+    })();
+    if let Err(e) = written {
+        // Best effort: the error returned is the write's.
+        let _ = std::fs::remove_file(&tmp);
+        return Err(io(e));
+    }
     Ok(())
 }

@@ -463,3 +463,37 @@ fn serde_keeps_the_imu_fields_and_reads_rigs_without_them() {
     let read: Rig = serde_json::from_str(&old).unwrap();
     assert_eq!(read.cameras[0].timeshift_cam_imu_s, None);
 }
+
+/// Written files take the modes any program's files take (`0666` less the umask), not the
+/// `0600` of temporary-file libraries, so that another account (a ROS node) can read them.
+#[cfg(unix)]
+#[test]
+fn written_files_take_the_umask_modes() {
+    use std::os::unix::fs::PermissionsExt;
+    let dir = tempfile::tempdir().unwrap();
+    let reference = dir.path().join("reference");
+    std::fs::write(&reference, b"").unwrap();
+    let mode = |p: &std::path::Path| std::fs::metadata(p).unwrap().permissions().mode() & 0o777;
+    let rig = Rig::from_kalibr_str(
+        &std::fs::read_to_string(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/tests/data/trimbot-camchain.yaml"
+        ))
+        .unwrap(),
+    )
+    .unwrap();
+    let camchain = dir.path().join("camchain.yaml");
+    rig.write_kalibr(&camchain).unwrap();
+    assert_eq!(mode(&camchain), mode(&reference));
+    rig.write_camodocal_dir(dir.path().join("rig")).unwrap();
+    for entry in std::fs::read_dir(dir.path().join("rig")).unwrap() {
+        let path = entry.unwrap().path();
+        assert_eq!(mode(&path), mode(&reference), "{}", path.display());
+    }
+    // No temporary file is left next to the outputs.
+    let names: Vec<String> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    assert!(names.iter().all(|n| !n.starts_with('.')), "{names:?}");
+}

@@ -17,7 +17,11 @@ pub fn bal_path(name: &str) -> std::path::PathBuf {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("tests/data")
         .join(name);
-    assert!(path.is_file(), "{} is missing from the repository", path.display());
+    assert!(
+        path.is_file(),
+        "{} is missing from the repository",
+        path.display()
+    );
     path
 }
 

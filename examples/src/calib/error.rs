@@ -27,6 +27,20 @@ pub enum CalibrationError {
         /// Cameras in the rig log.
         log_cameras: usize,
     },
+    /// The camera file and the rig log name different cameras.
+    #[error(
+        "the camera file names the cameras {} but the rig log {}: are they from the same \
+         rig? (cameras are matched by name; a file without names, such as a Kalibr camchain, \
+         by order)",
+        file.join(", "),
+        log.join(", ")
+    )]
+    CameraNamesMismatch {
+        /// The camera file's names, in its order.
+        file: Vec<String>,
+        /// The log's names, in its order.
+        log: Vec<String>,
+    },
     /// The rig has fewer than two cameras: a rig calibration needs at least two.
     #[error("the rig has {cameras} camera(s): extrinsic calibration needs at least two")]
     TooFewCameras {

@@ -21,6 +21,7 @@
 //! [`Calibration::timing`] differs).
 
 pub mod accuracy;
+pub mod camera_matching;
 mod error;
 pub mod frame_sets;
 pub mod hand_eye;
@@ -34,6 +35,7 @@ pub mod quality;
 pub mod refinement;
 
 pub use accuracy::{CameraAccuracy, HandEyeAccuracy};
+pub use camera_matching::{CameraMatching, match_cameras};
 pub use error::CalibrationError;
 pub use frame_sets::{FrameSet, select_frame_sets};
 pub use hand_eye::{HandEye, HandEyeFailure, HandEyeSolver, calibrate_hand_eye};

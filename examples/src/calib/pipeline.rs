@@ -11,6 +11,7 @@ use nalgebra::{Isometry3, Vector2};
 use super::accuracy::{
     CameraAccuracy, HandEyeAccuracy, camera_accuracy, hand_eye_accuracy, true_rig_from_odometry,
 };
+use super::camera_matching::{CameraMatching, match_cameras};
 use super::error::CalibrationError;
 use super::frame_sets::{FrameSet, select_frame_sets};
 use super::hand_eye::{HandEye, HandEyeFailure, HandEyeSolver, calibrate_hand_eye, choose_solver};
@@ -50,9 +51,11 @@ pub struct Calibration {
     pub camera_names: Vec<String>,
     /// The cameras' intrinsics, from the camera file.
     pub cameras: Vec<Camera>,
-    /// The extrinsics the camera file held (the configuration before the calibration), in
-    /// its own rig frame.
-    pub prior_rig_from_camera: Vec<Isometry3<f64>>,
+    /// The camera file's cameras in the log's order (see [`super::camera_matching`]); their
+    /// extrinsics are the configuration before the calibration, in the file's rig frame.
+    pub prior_rig: Rig,
+    /// How the camera file's cameras were matched to the log's.
+    pub camera_matching: CameraMatching,
     /// The estimated extrinsics `rig_from_camera`; the rig frame is camera 0's.
     pub rig_from_camera: Vec<Isometry3<f64>>,
     /// The kind of odometry in the log.
@@ -106,6 +109,15 @@ pub fn finite_mean(values: &[f64]) -> f64 {
 }
 
 impl Calibration {
+    /// The extrinsics the camera file held, in the log's camera order and the file's rig frame.
+    pub fn prior_rig_from_camera(&self) -> Vec<Isometry3<f64>> {
+        self.prior_rig
+            .cameras
+            .iter()
+            .map(|c| c.rig_from_camera)
+            .collect()
+    }
+
     /// Number of frame sets used.
     pub fn frame_sets_used(&self) -> usize {
         self.frame_sets.len()
@@ -201,12 +213,6 @@ pub fn calibrate<D: Descriptor>(
 /// Checks the inputs' sizes before any work.
 fn check_inputs<D>(map: &Map<D>, log: &RigLog<D>, rig: &Rig) -> Result<(), CalibrationError> {
     let k = rig.cameras.len();
-    if log.camera_names.len() != k {
-        return Err(CalibrationError::CameraCountMismatch {
-            cameras: k,
-            log_cameras: log.camera_names.len(),
-        });
-    }
     if k < 2 {
         return Err(CalibrationError::TooFewCameras { cameras: k });
     }
@@ -338,11 +344,13 @@ fn localization_counts(
 /// Runs the whole calibration: the map index (the given vocabulary, or one trained on the
 /// map), localization, frame sets, initialization, refinement and, when the log has odometry
 /// and the options ask for it, hand-eye calibration. The cameras of `rig` are matched to the
-/// log's by order; their intrinsics are used as they are, their extrinsics only reported as
-/// the prior configuration.
+/// log's by name (by order when the file carries no names: see [`super::camera_matching`]);
+/// their intrinsics are used as they are, their extrinsics only reported as the prior
+/// configuration.
 ///
 /// # Errors
 /// [`CalibrationError::InvalidOption`], [`CalibrationError::CameraCountMismatch`],
+/// [`CalibrationError::CameraNamesMismatch`],
 /// [`CalibrationError::TooFewCameras`], [`CalibrationError::EmptyLog`],
 /// [`CalibrationError::EmptyMap`], [`CalibrationError::InvalidInput`] for bad input;
 /// [`CalibrationError::Vocabulary`]; [`CalibrationError::NothingLocalized`] and
@@ -360,7 +368,8 @@ pub fn calibrate_with<D: Descriptor>(
 ) -> Result<Calibration, CalibrationError> {
     let start = Instant::now();
     options.validate()?;
-    check_inputs(map, log, rig)?;
+    let (rig, camera_matching) = match_cameras(rig, &log.camera_names)?;
+    check_inputs(map, log, &rig)?;
     let cameras: Vec<Camera> = rig.cameras.iter().map(|c| c.camera.clone()).collect();
     let mut timing = Timing::default();
 
@@ -483,7 +492,8 @@ pub fn calibrate_with<D: Descriptor>(
     Ok(Calibration {
         camera_names: log.camera_names.clone(),
         cameras,
-        prior_rig_from_camera,
+        prior_rig: rig,
+        camera_matching,
         rig_from_camera: refinement.rig_from_camera.clone(),
         odometry: log.odometry,
         localizations,

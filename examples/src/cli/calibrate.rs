@@ -43,14 +43,13 @@ fn read_cameras(path: &Path) -> Result<Rig, CliError> {
 pub fn finish(
     calibration: &Calibration,
     truth: Option<&GroundTruth>,
-    prior: Option<&Rig>,
     out: Option<&Path>,
     json: bool,
     quiet: bool,
 ) -> Result<Outcome, CliError> {
     let report = Report::new(calibration, truth)?;
     let written = out
-        .map(|dir| write_outputs(dir, calibration, &report, prior).map(|_| dir))
+        .map(|dir| write_outputs(dir, calibration, &report).map(|_| dir))
         .transpose()?;
     let wrote = written.map(|dir| {
         format!(
@@ -121,7 +120,6 @@ fn calibrate_files<D: Descriptor + FileDescriptor>(
     finish(
         &calibration,
         truth.as_ref(),
-        Some(&rig),
         Some(&args.out),
         args.json,
         args.quiet,

@@ -27,7 +27,6 @@ pub fn run(args: &DemoArgs) -> Result<Outcome, CliError> {
     finish(
         &calibration,
         Some(&world.truth),
-        Some(&world.map_rig),
         args.out.as_deref(),
         args.json,
         args.quiet,

@@ -20,7 +20,8 @@
 //!   error; [`read_descriptor_layout`] tells which type to ask for.
 //! - Reserved bytes are zero. The last 8 bytes are the **XXH64** (seed 0) of every byte before
 //!   them (`head -c -8 FILE | xxhsum -H1` prints it).
-//! - Files are written atomically: a temporary file in the same folder, synced, then renamed.
+//! - Files are written atomically: staged in a hidden folder next to them, synced, then
+//!   renamed (see [`StagedFiles`]), with the umask's usual modes.
 //!
 //! # The common header (32 bytes)
 //!
@@ -153,7 +154,9 @@ mod truth_json;
 
 use std::path::Path;
 
-pub use atomic::{StagedFiles, write_atomically};
+pub use atomic::{
+    STAGING_PREFIX, STALE_STAGING_SECONDS, StagedFiles, remove_staged_outputs, write_atomically,
+};
 pub(crate) use bytes::unit_quaternion;
 pub use checksum::xxh64;
 pub use descriptor::FileDescriptor;

@@ -59,12 +59,11 @@ pub fn camchain_text(calibration: &IntrinsicCalibration, camera_name: &str) -> S
 
 /// Writes the CamOdoCal YAML, the Kalibr camchain, the JSON report and the residual SVG (and,
 /// for simulated boards, the corners and the true camera) into `dir`, creating it if needed.
-/// Every file is staged next to its target and renamed only when all were written, so an
-/// error leaves none of them behind.
+/// Every file is staged in a hidden folder and renamed only when all were written
+/// ([`StagedFiles`]), so an error or an interrupt leaves none of them behind.
 ///
 /// # Errors
-/// [`IntrinsicsError::Io`] if the folder cannot be created, [`IntrinsicsError::Output`] if a
-/// file cannot be written.
+/// [`IntrinsicsError::Output`] if the folder cannot be created or a file cannot be written.
 pub fn write_outputs(
     dir: &Path,
     camera_name: &str,
@@ -73,10 +72,6 @@ pub fn write_outputs(
     report: &IntrinsicsReport,
     simulated: Option<&SimulatedBoards>,
 ) -> Result<OutputFiles, IntrinsicsError> {
-    std::fs::create_dir_all(dir).map_err(|source| IntrinsicsError::Io {
-        path: dir.to_owned(),
-        source,
-    })?;
     let files = OutputFiles {
         camodocal: dir.join(camodocal_file_name(camera_name)),
         camchain: dir.join(CAMCHAIN_FILE),
@@ -85,7 +80,7 @@ pub fn write_outputs(
         corners: simulated.map(|_| dir.join(SIMULATED_CORNERS_FILE)),
         truth: simulated.map(|_| dir.join(camodocal_file_name(TRUTH_CAMERA_NAME))),
     };
-    let mut staged = StagedFiles::new();
+    let mut staged = StagedFiles::new(dir)?;
     staged.stage(
         &files.camodocal,
         camodocal::format_camera(camera_name, &calibration.camera).as_bytes(),

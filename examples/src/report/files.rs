@@ -1,12 +1,14 @@
 //! The output files of a calibration, written all or nothing.
 //!
-//! Every file is first written to a temporary file in its target folder; the temporary files
-//! are renamed into place only when all of them were written, so an error leaves no partial
-//! output (and a folder this function created is removed again).
+//! Every file is first written into a hidden staging folder of the output folder and renamed
+//! into place only when all of them were written ([`StagedFiles`]), so an error or an
+//! interrupt leaves no partial output (and a folder this function created is removed again).
 
 use std::path::{Path, PathBuf};
 
-use ibc_camera_models::camodocal::{format_camera, format_extrinsics};
+use ibc_camera_models::camodocal::{
+    EXTRINSIC_FILE_NAME, calib_file_name, format_camera, format_extrinsics,
+};
 use ibc_camera_models::{Rig, RigCamera};
 
 use super::json::Report;
@@ -24,8 +26,8 @@ pub mod output_names {
     /// The Kalibr camchain with the intrinsics and the estimated extrinsics (named so that it
     /// never overwrites the input `camchain.yaml` of a simulated world's folder).
     pub const CAMCHAIN: &str = "camchain-calibrated.yaml";
-    /// The folder of the CamOdoCal files (`<name>_camera_calib.yaml` per camera and
-    /// `extrinsic.txt`).
+    /// The folder of the CamOdoCal files, laid out as CamOdoCal's `CameraSystem` writes and
+    /// reads a rig (`<name>_calib.yaml` per camera and `extrinsic.txt`).
     pub const CAMODOCAL_DIR: &str = "camodocal";
     /// The top view.
     pub const TOP_VIEW: &str = "top_view.svg";
@@ -37,27 +39,25 @@ pub mod output_names {
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum OutputError {
-    /// A folder could not be created.
-    #[error("cannot create the output folder {}: {source}", path.display())]
-    Folder {
-        /// The folder.
-        path: PathBuf,
-        /// The operating system's error.
-        source: std::io::Error,
-    },
     /// A file could not be written or renamed.
     #[error(transparent)]
     File(#[from] DataFileError),
     /// A camera name cannot be a file name.
     #[error(
-        "camera name `{0}` cannot be used in a file name (CamOdoCal names files after cameras)"
+        "camera name `{0}` cannot be used in a file name (CamOdoCal names files after cameras, \
+         and keeps only the first word of a name)"
     )]
     CameraName(String),
 }
 
-/// The calibrated rig: the calibration's names, intrinsics and extrinsics, with the topics of
-/// `prior` (the camera file) when it has them.
-pub fn calibrated_rig(calibration: &Calibration, prior: Option<&Rig>) -> Rig {
+/// The calibrated rig: the calibration's names, intrinsics and extrinsics, with the Kalibr
+/// metadata of the camera file's cameras (topic, overlaps, time shift to the IMU). The
+/// camera file's `T_cam_imu` is carried over through camera 0, which defines the rig frame:
+/// the IMU is taken as fixed to it, so camera `c`'s new `camera_from_imu` is
+/// `rig_from_camera_c^-1 camera_0_from_imu` (none when camera 0 has no `T_cam_imu`).
+pub fn calibrated_rig(calibration: &Calibration) -> Rig {
+    let prior = &calibration.prior_rig.cameras;
+    let rig_from_imu = prior.first().and_then(|c| c.camera_from_imu);
     Rig::new(
         calibration
             .camera_names
@@ -67,36 +67,21 @@ pub fn calibrated_rig(calibration: &Calibration, prior: Option<&Rig>) -> Rig {
             .enumerate()
             .map(|(c, ((name, camera), pose))| {
                 let mut rc = RigCamera::new(name.clone(), camera.clone(), *pose);
-                rc.topic = prior
-                    .and_then(|p| p.cameras.get(c))
-                    .and_then(|p| p.topic.clone());
+                if let Some(p) = prior.get(c) {
+                    rc.topic.clone_from(&p.topic);
+                    rc.overlaps.clone_from(&p.overlaps);
+                    rc.timeshift_cam_imu_s = p.timeshift_cam_imu_s;
+                }
+                rc.camera_from_imu = rig_from_imu.map(|r| pose.inverse() * r);
                 rc
             })
             .collect(),
     )
 }
 
-/// Creates `dir` and its missing parents; returns the topmost folder it created, if any.
-fn create_folder(dir: &Path) -> Result<Option<PathBuf>, OutputError> {
-    let mut missing = None;
-    let mut p = Some(dir);
-    while let Some(d) = p {
-        if d.as_os_str().is_empty() || d.exists() {
-            break;
-        }
-        missing = Some(d.to_path_buf());
-        p = d.parent();
-    }
-    std::fs::create_dir_all(dir).map_err(|source| OutputError::Folder {
-        path: dir.to_path_buf(),
-        source,
-    })?;
-    Ok(missing)
-}
-
 /// Writes every output file into `dir` (created if missing): the JSON report, the text table,
-/// the Kalibr camchain, the CamOdoCal folder and the two SVG plots (see [`output_names`]).
-/// Returns the files written.
+/// the Kalibr camchain, the CamOdoCal folder and the two SVG plots (see [`output_names`]),
+/// all or nothing ([`StagedFiles`]). Returns the files written.
 ///
 /// # Errors
 /// [`OutputError`]; nothing is left behind then.
@@ -104,16 +89,20 @@ pub fn write_outputs(
     dir: impl AsRef<Path>,
     calibration: &Calibration,
     report: &Report,
-    prior: Option<&Rig>,
 ) -> Result<Vec<PathBuf>, OutputError> {
     use output_names as n;
     let dir = dir.as_ref();
     for name in &calibration.camera_names {
-        if name.is_empty() || name.contains(['/', '\\', '\0']) || name == "." || name == ".." {
+        if name.is_empty()
+            || name.contains(['/', '\\', '\0'])
+            || name.chars().any(char::is_whitespace)
+            || name == "."
+            || name == ".."
+        {
             return Err(OutputError::CameraName(name.clone()));
         }
     }
-    let rig = calibrated_rig(calibration, prior);
+    let rig = calibrated_rig(calibration);
     let mut contents: Vec<(PathBuf, String)> = vec![
         (dir.join(n::REPORT_JSON), report.to_json() + "\n"),
         (dir.join(n::REPORT_TEXT), text_table(report)),
@@ -124,34 +113,21 @@ pub fn write_outputs(
     let camodocal = dir.join(n::CAMODOCAL_DIR);
     for c in &rig.cameras {
         contents.push((
-            camodocal.join(format!("{}_camera_calib.yaml", c.name)),
+            camodocal.join(calib_file_name(&c.name)),
             format_camera(&c.name, &c.camera),
         ));
     }
     contents.push((
-        camodocal.join("extrinsic.txt"),
+        camodocal.join(EXTRINSIC_FILE_NAME),
         format_extrinsics(
             rig.cameras
                 .iter()
                 .map(|c| (c.name.as_str(), &c.rig_from_camera)),
         ),
     ));
-    let created = create_folder(&camodocal)?;
-    let staged = (|| {
-        let mut files = StagedFiles::new();
-        for (path, text) in &contents {
-            files.stage(path, text.as_bytes())?;
-        }
-        files.commit()
-    })();
-    match staged {
-        Ok(written) => Ok(written),
-        Err(e) => {
-            if let Some(top) = created {
-                // Best effort: the error reported is the write's.
-                let _ = std::fs::remove_dir_all(top);
-            }
-            Err(e.into())
-        }
+    let mut files = StagedFiles::new(dir)?;
+    for (path, text) in &contents {
+        files.stage(path, text.as_bytes())?;
     }
+    Ok(files.commit()?)
 }

@@ -325,7 +325,7 @@ impl Report {
     ) -> Result<Self, CalibrationError> {
         let accuracy = truth.map(|t| calibration.accuracy(t)).transpose()?;
         let std = calibration.refinement.rig_from_camera_std.as_ref();
-        let prior = relative_to_first(&calibration.prior_rig_from_camera);
+        let prior = relative_to_first(&calibration.prior_rig_from_camera());
         let estimate = relative_to_first(&calibration.rig_from_camera);
         let per_camera = calibration.localizations.localized_per_camera();
         let cameras = (0..calibration.cameras.len())

@@ -317,18 +317,14 @@ impl SimulatedWorld {
 
     /// Writes `map.ibcmap`, `log.ibclog`, `camchain.yaml` (the map-building configuration,
     /// via `ibc-camera-models`) and `truth.json` into `dir` (created if needed), all or
-    /// nothing: every file is written to a temporary file first and renamed only when all
-    /// four were written.
+    /// nothing: every file is staged in a hidden folder first and renamed only when all four
+    /// were written ([`StagedFiles`]).
     ///
     /// # Errors
-    /// [`SimError::Io`] if the folder cannot be created, [`SimError::File`] if a file cannot
-    /// be encoded or written; no output file is left behind then.
+    /// [`SimError::File`] if the folder cannot be created or a file cannot be encoded or
+    /// written; no output file is left behind then.
     pub fn write(&self, dir: impl AsRef<Path>) -> Result<WrittenFiles, SimError> {
         let dir = dir.as_ref();
-        std::fs::create_dir_all(dir).map_err(|source| SimError::Io {
-            path: dir.to_owned(),
-            source,
-        })?;
         let files = WrittenFiles {
             map: dir.join(file_names::MAP),
             log: dir.join(file_names::LOG),
@@ -349,7 +345,7 @@ impl SimulatedWorld {
             .check_names()
             .map_err(|e| SimError::Rig(e.to_string()))?;
         let cameras = self.map_rig.to_kalibr_string();
-        let mut staged = StagedFiles::new();
+        let mut staged = StagedFiles::new(dir)?;
         staged.stage(&files.map, &map)?;
         staged.stage(&files.log, &log)?;
         staged.stage(&files.cameras, cameras.as_bytes())?;
