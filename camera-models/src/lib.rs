@@ -35,4 +35,4 @@ pub use pinhole_radtan::PinholeRadtan;
 pub use radtan::MAX_UNDISTORT_ITERATIONS;
 pub use rig::{Rig, RigCamera};
 pub use unified::Unified;
-pub use yaml::MAX_YAML_DEPTH;
+pub use yaml::{MAX_YAML_DEPTH, check_yaml_input};

@@ -47,6 +47,20 @@ pub fn parse(text: &str) -> Result<Yaml, FileError> {
     }
 }
 
+/// Refuses YAML text that a DOM loader would expand without bound, before it is loaded: any
+/// alias (`*name`: yaml-rust2's loader copies the aliased node at every use, so a 335-byte
+/// "billion laughs" file grows to gigabytes) and nesting deeper than [`MAX_YAML_DEPTH`]
+/// (which overflows the loader's stack). The event parser it runs holds no document. The
+/// readers of this crate call it; other YAML readers of the same files (scenario files that
+/// embed rigs, say) should too.
+///
+/// # Errors
+/// [`FileError::YamlAlias`] or [`FileError::YamlTooDeep`] with the line, or
+/// [`FileError::Yaml`] for a syntax error.
+pub fn check_yaml_input(text: &str) -> Result<(), FileError> {
+    check_events(text, 0)
+}
+
 /// Run the event parser over `body` (which holds no document, so it takes no memory beyond
 /// the current event) and refuse the first alias and any nesting deeper than
 /// [`MAX_YAML_DEPTH`].

@@ -186,7 +186,7 @@ fn a_log_that_does_not_fit_the_map_is_refused() {
 #[test]
 fn a_log_without_complete_frame_sets_is_refused() {
     let f = files();
-    // Camera 2 saw nothing: no frame set has every camera.
+    // Camera 2 saw nothing: the error names it and says why its images failed.
     let mut log = read_log::<BinaryDescriptor>(&f.log).unwrap();
     for frame in &mut log.frames {
         frame.images[2].keypoints.clear();
@@ -197,6 +197,21 @@ fn a_log_without_complete_frame_sets_is_refused() {
     fails(
         &f.map,
         &blind,
+        &f.cameras,
+        &["camera `rear` was localized in none of its", "the image has no feature"],
+    );
+    // Cameras 2 and 3 saw nothing in turns: each is localized, never all four together.
+    let mut log = read_log::<BinaryDescriptor>(&f.log).unwrap();
+    for (i, frame) in log.frames.iter_mut().enumerate() {
+        let c = 2 + i % 2;
+        frame.images[c].keypoints.clear();
+        frame.images[c].descriptors.clear();
+    }
+    let alternating = f.dir.join("alternating.ibclog");
+    write_log(&alternating, &log).unwrap();
+    fails(
+        &f.map,
+        &alternating,
         &f.cameras,
         &["no complete frame set", "every camera"],
     );

@@ -85,10 +85,29 @@ fn simulate_then_calibrate_gives_the_demo_result() {
         "--json",
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
+    // Where the files went, on standard error since standard output holds the JSON.
+    assert!(
+        stderr(&o).contains("wrote ") && stderr(&o).contains("report.json"),
+        "{}",
+        stderr(&o)
+    );
     let mut calibrated: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
     for report in [&mut demo, &mut calibrated] {
         report.as_object_mut().unwrap().remove("timing_s").unwrap();
     }
+    // A Kalibr camchain names no cameras: matched by order, and the report says so.
+    let notes = calibrated.as_object_mut().unwrap().remove("notes").unwrap();
+    assert!(
+        notes[0]
+            .as_str()
+            .unwrap()
+            .contains("matched to the log by order (cam0 = front"),
+        "{notes}"
+    );
+    assert!(
+        demo.get("notes").is_none(),
+        "the demo's names match: no note"
+    );
     // Equal but for the last bits of the prior extrinsics, which went through the camchain's
     // chained T_cn_cnm1.
     json_close(&demo, &calibrated, "report").unwrap();

@@ -49,7 +49,10 @@ pub enum HandEyeError {
     /// No motion rotates enough to be used: the rotation (and, for the planar method, the
     /// translation) of `X` is not determined by pure translations.
     #[error(
-        "no motion rotates by at least the minimum rotation {min_rotation} rad (largest: {largest_rotation} rad): X is not determined"
+        "no motion rotates by at least the minimum rotation of {:.3} deg (the largest rotates \
+         {:.3} deg): X is not determined",
+        .min_rotation.to_degrees(),
+        .largest_rotation.to_degrees()
     )]
     NoRotation {
         /// The largest rotation angle among the motions, radians.
@@ -76,7 +79,14 @@ pub enum HandEyeError {
     /// translation of `X` along that axis is unobservable. The planar solver
     /// ([`crate::guo_planar`]) handles this case and takes that component from a prior.
     #[error(
-        "all rotation axes are parallel to {axis_a:?} (frame a; spread {axis_spread} rad, signal-to-noise {signal_to_noise}): the translation of X along this axis is unobservable (planar motion); use the planar solver with a height prior"
+        "all rotation axes are parallel to [{:.3}, {:.3}, {:.3}] (frame a; spread {:.3} deg, \
+         signal-to-noise {:.2e}): the translation of X along this axis is unobservable \
+         (planar motion); use the planar solver with a height prior",
+        .axis_a.x,
+        .axis_a.y,
+        .axis_a.z,
+        .axis_spread.to_degrees(),
+        .signal_to_noise
     )]
     ParallelRotationAxes {
         /// The common rotation axis of the `A_i`, a unit vector in frame `a`.
@@ -88,7 +98,7 @@ pub enum HandEyeError {
     },
     /// The motions leave a part of `X` undetermined (named in `unobservable`).
     #[error(
-        "degenerate motion: {unobservable} is unobservable (signal-to-noise {signal_to_noise})"
+        "degenerate motion: {unobservable} is unobservable (signal-to-noise {signal_to_noise:.2e})"
     )]
     Degenerate {
         /// What the motions cannot determine.
@@ -99,7 +109,8 @@ pub enum HandEyeError {
     /// The quadratic constraint of the null-space step has no real root: the motions are not
     /// consistent with one rigid transform (wrong pairing, unsynchronized or non-rigid data).
     #[error(
-        "negative discriminant {discriminant} in the {step}: the motions are not consistent with one rigid transform"
+        "negative discriminant {discriminant:.3e} in the {step}: the motions are not consistent \
+         with one rigid transform"
     )]
     NegativeDiscriminant {
         /// The step whose quadratic failed.
@@ -110,7 +121,12 @@ pub enum HandEyeError {
     /// A motion of sensor `b` leaves the plane the planar method assumes (rotation axis not
     /// along `z` of frame `b`, or translation out of its `xy` plane).
     #[error(
-        "motion {index:?} of sensor b is not planar (None: the translations taken together): it leaves the xy plane of frame b by {out_of_plane} rad (tolerance {tolerance} rad)"
+        "{} of sensor b {} not planar: it leaves the xy plane of frame b by {:.3} deg \
+         (tolerance {:.3} deg)",
+        .index.map_or_else(|| "the translations taken together".to_owned(), |i| format!("motion {i}")),
+        if .index.is_some() { "is" } else { "are" },
+        .out_of_plane.to_degrees(),
+        .tolerance.to_degrees()
     )]
     NotPlanar {
         /// Index of the motion pair whose rotation tilts, or `None` when the translations taken

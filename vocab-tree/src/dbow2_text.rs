@@ -15,7 +15,7 @@
 //! word ids agree with ORB-SLAM's. Nodes are renumbered breadth first (children in file
 //! order) into the flat layout. Parsing allocates per array, never per node.
 
-use std::io::BufRead;
+use std::io::{BufRead, Read};
 use std::path::Path;
 
 use crate::descriptor::Descriptor;
@@ -23,6 +23,11 @@ use crate::error::{FileError, Result, VocabError};
 use crate::scoring::Scoring;
 use crate::vocabulary::{MAX_DEPTH, Vocabulary, VocabularyParts};
 use crate::weighting::Weighting;
+
+/// The longest line read, in bytes: a node line of `ORBvoc.txt` is about 100 bytes and a
+/// 128-float descriptor in text about 2 kB, so 64 KiB refuses only what is not a vocabulary
+/// (a binary file, `/dev/zero`) before it fills memory.
+pub const MAX_LINE_BYTES: usize = 64 * 1024;
 
 fn text_error(line: usize, reason: impl Into<String>) -> VocabError {
     FileError::Text {
@@ -76,9 +81,28 @@ impl<D: Descriptor> Vocabulary<D> {
         let mut weight: Vec<f32> = vec![0.0];
         let mut centroid: Vec<D> = vec![D::zero()];
         let mut line_of: Vec<u32> = vec![1];
-        for (i, line) in reader.lines().enumerate() {
-            let line_no = i + 1;
-            let line = line.map_err(|e| text_error(line_no, format!("read error: {e}")))?;
+        let mut reader = reader;
+        let mut bytes = Vec::new();
+        let mut line_no = 0;
+        loop {
+            line_no += 1;
+            bytes.clear();
+            let read = Read::take(&mut reader, MAX_LINE_BYTES as u64 + 1)
+                .read_until(b'\n', &mut bytes)
+                .map_err(|e| text_error(line_no, format!("read error: {e}")))?;
+            if read == 0 {
+                break;
+            }
+            if bytes.len() > MAX_LINE_BYTES {
+                return Err(text_error(
+                    line_no,
+                    format!(
+                        "the line is longer than {MAX_LINE_BYTES} bytes: not a DBoW2 text vocabulary"
+                    ),
+                ));
+            }
+            let line = std::str::from_utf8(&bytes)
+                .map_err(|_| text_error(line_no, "the line is not UTF-8 text"))?;
             if line.trim().is_empty() {
                 continue;
             }
@@ -190,12 +214,12 @@ impl<D: Descriptor> Vocabulary<D> {
     }
 
     /// Imports a DBoW2 / ORB-SLAM text vocabulary file such as `ORBvoc.txt`.
+    /// Only regular files are read (a FIFO would block, a device never end), and no line may
+    /// exceed [`MAX_LINE_BYTES`].
     pub fn load_dbow2_text(path: impl AsRef<Path>) -> Result<Self> {
         let path = path.as_ref();
-        let file = std::fs::File::open(path).map_err(|source| VocabError::Io {
-            path: path.to_path_buf(),
-            source,
-        })?;
+        let file = crate::file_format::open_regular(path)?;
         Self::from_dbow2_text(std::io::BufReader::with_capacity(1 << 20, file))
+            .map_err(|e| e.in_file(path))
     }
 }

@@ -65,16 +65,39 @@ pub enum VocabError {
     #[error("the instruction set {0:?} is not supported by this CPU")]
     UnsupportedIsa(crate::simd::Isa),
     /// A vocabulary file could not be read or written.
-    #[error("I/O error on {path}: {source}")]
+    #[error("I/O error on {}: {source}", path.display())]
     Io {
         /// The file.
         path: PathBuf,
         /// The underlying error.
         source: std::io::Error,
     },
-    /// A vocabulary file is not valid.
+    /// A vocabulary's bytes or text are not valid.
     #[error("invalid vocabulary file: {0}")]
     File(#[from] FileError),
+    /// A vocabulary file read from a path is not valid.
+    #[error("invalid vocabulary file {}: {source}", path.display())]
+    InvalidFile {
+        /// The file.
+        path: PathBuf,
+        /// Why it was rejected.
+        source: FileError,
+    },
+}
+
+impl VocabError {
+    /// The error with the file's path attached when it is a [`VocabError::File`] (the other
+    /// errors of a file name it already, or are not about the file).
+    #[must_use]
+    pub fn in_file(self, path: &std::path::Path) -> Self {
+        match self {
+            Self::File(source) => Self::InvalidFile {
+                path: path.to_path_buf(),
+                source,
+            },
+            other => other,
+        }
+    }
 }
 
 /// Why a vocabulary file was rejected.

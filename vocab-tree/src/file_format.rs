@@ -30,6 +30,7 @@
 
 use std::io::{Read, Write};
 use std::path::Path;
+use std::sync::atomic::{AtomicU64, Ordering};
 
 use crate::descriptor::{Descriptor, DescriptorKind};
 use crate::error::{FileError, Result, VocabError};
@@ -56,6 +57,31 @@ pub fn checksum(body: &[u8]) -> u64 {
 
 fn u32_at(b: &[u8], at: usize) -> u32 {
     u32::from_le_bytes([b[at], b[at + 1], b[at + 2], b[at + 3]])
+}
+
+/// Opens `path` for reading if it is a regular file (checked before the open, which would
+/// block on a FIFO, and again on the open file).
+pub(crate) fn open_regular(path: &Path) -> Result<std::fs::File> {
+    let not_regular = || {
+        io_error(
+            path,
+            std::io::Error::new(
+                std::io::ErrorKind::InvalidInput,
+                "not a regular file (a FIFO, a device or a folder)",
+            ),
+        )
+    };
+    if !std::fs::metadata(path)
+        .map_err(|e| io_error(path, e))?
+        .is_file()
+    {
+        return Err(not_regular());
+    }
+    let file = std::fs::File::open(path).map_err(|e| io_error(path, e))?;
+    if !file.metadata().map_err(|e| io_error(path, e))?.is_file() {
+        return Err(not_regular());
+    }
+    Ok(file)
 }
 
 fn io_error(path: &Path, source: std::io::Error) -> VocabError {
@@ -113,12 +139,31 @@ pub(crate) fn write_atomically(path: &Path, bytes: &[u8]) -> Result<()> {
         Some(d) if !d.as_os_str().is_empty() => d,
         _ => Path::new("."),
     };
-    let mut tmp = tempfile::NamedTempFile::new_in(dir).map_err(|e| io_error(path, e))?;
-    tmp.write_all(bytes).map_err(|e| io_error(path, e))?;
-    tmp.as_file().sync_all().map_err(|e| io_error(path, e))?;
-    tmp.persist(path).map_err(|e| io_error(path, e.error))?;
-    Ok(())
+    let name = path
+        .file_name()
+        .map_or_else(|| "vocabulary".into(), |n| n.to_string_lossy());
+    let n = NEXT_TEMPORARY.fetch_add(1, Ordering::Relaxed);
+    let tmp = dir.join(format!(".{name}.tmp-{}-{n}", std::process::id()));
+    // Created as any program creates files (mode 0666 less the umask), so other accounts can
+    // read the vocabulary; temporary-file libraries use 0600.
+    let written = (|| {
+        let mut file = std::fs::OpenOptions::new()
+            .write(true)
+            .create_new(true)
+            .open(&tmp)?;
+        file.write_all(bytes)?;
+        file.sync_all()?;
+        std::fs::rename(&tmp, path)
+    })();
+    written.map_err(|e| {
+        // Best effort: the error returned is the write's.
+        let _ = std::fs::remove_file(&tmp);
+        io_error(path, e)
+    })
 }
+
+/// Distinguishes the temporary files of one process.
+static NEXT_TEMPORARY: AtomicU64 = AtomicU64::new(0);
 
 impl<D: Descriptor> Vocabulary<D> {
     /// The vocabulary in the file format (see the [module docs](crate::file_format)).
@@ -278,11 +323,14 @@ impl<D: Descriptor> Vocabulary<D> {
 
     /// Reads a vocabulary written by [`save`](Self::save) (see
     /// [`from_bytes`](Self::from_bytes) for the checks).
+    ///
+    /// Only regular files are read (a FIFO would block, a device never end); an invalid file's
+    /// error names it ([`VocabError::InvalidFile`]).
     pub fn load(path: impl AsRef<Path>) -> Result<Self> {
         let path = path.as_ref();
-        let file = std::fs::File::open(path).map_err(|e| io_error(path, e))?;
+        let file = open_regular(path)?;
         let len = file.metadata().map_err(|e| io_error(path, e))?.len();
-        Self::read_from(file, len, path)
+        Self::read_from(file, len, path).map_err(|e| e.in_file(path))
     }
 }
 

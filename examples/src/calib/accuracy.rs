@@ -19,7 +19,7 @@ use nalgebra::{Isometry3, Vector3};
 
 use super::error::CalibrationError;
 use super::hand_eye::HandEye;
-use crate::data::GroundTruth;
+use crate::data::{GroundTruth, TruthMismatch};
 
 /// The errors of one camera's extrinsic relative to camera 0.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -75,11 +75,10 @@ pub fn camera_accuracy(
     truth: &[Isometry3<f64>],
 ) -> Result<Vec<Option<CameraAccuracy>>, CalibrationError> {
     if estimate.len() != truth.len() {
-        return Err(CalibrationError::Truth(format!(
-            "the truth has {} cameras, the calibration {}",
-            truth.len(),
-            estimate.len()
-        )));
+        return Err(CalibrationError::Truth(TruthMismatch::CameraCount {
+            truth: truth.len(),
+            log: estimate.len(),
+        }));
     }
     let (e, t) = (relative_to_first(estimate), relative_to_first(truth));
     Ok(e.iter()

@@ -1,6 +1,8 @@
 //! The pipeline's error type.
 
 use ibc_rig_averaging::RigAveragingError;
+
+use crate::data::TruthMismatch;
 use ibc_vocab_tree::VocabError;
 
 /// Why a calibration could not be computed. Each message names the problem and, where one is
@@ -73,6 +75,20 @@ pub enum CalibrationError {
         /// Images tried.
         images: usize,
     },
+    /// One camera was localized in none of its images (the others were).
+    #[error(
+        "camera `{camera}` was localized in none of its {images} images (most often: \
+         {reason}): do its intrinsics in the camera file match the camera, and does it see the \
+         mapped area?"
+    )]
+    CameraNotLocalized {
+        /// The camera's name.
+        camera: String,
+        /// Its images.
+        images: usize,
+        /// The most frequent reason its images failed.
+        reason: String,
+    },
     /// Localized images exist, but no frame set has enough localized cameras, or none has all
     /// cameras localized, which the initialization needs.
     #[error(
@@ -93,7 +109,7 @@ pub enum CalibrationError {
     /// The non-linear refinement failed.
     #[error("refinement: {0}")]
     Refinement(String),
-    /// The ground truth does not fit the calibration (another camera count, say).
+    /// The ground truth does not fit the calibration's log.
     #[error("ground truth: {0}")]
-    Truth(String),
+    Truth(#[from] TruthMismatch),
 }

@@ -159,9 +159,10 @@ impl Calibration {
     /// The errors against ground truth.
     ///
     /// # Errors
-    /// [`CalibrationError::Truth`] when the truth has another number of cameras or fewer
-    /// rig poses than the log's frames.
+    /// [`CalibrationError::Truth`] when the truth is not the truth of the calibrated log
+    /// (another number of frames, or other cameras).
     pub fn accuracy(&self, truth: &GroundTruth) -> Result<Accuracy, CalibrationError> {
+        truth.check_log(&self.camera_names, self.localizations.images.len())?;
         let cameras = camera_accuracy(&self.rig_from_camera, &truth.rig_from_camera)?;
         let hand_eye = match (&self.hand_eye, true_rig_from_odometry(truth)) {
             (Some(Ok(h)), Some(t)) => Some(hand_eye_accuracy(h, &t)),
@@ -170,19 +171,12 @@ impl Calibration {
         let mut errors = Vec::with_capacity(self.observations.len());
         for o in &self.observations {
             let frame = self.frame_sets[o.set as usize].frame;
-            let world_from_rig = truth.world_from_rig.get(frame).ok_or_else(|| {
-                CalibrationError::Truth(format!(
-                    "the truth has {} rig poses, the log at least {}",
-                    truth.world_from_rig.len(),
-                    frame + 1
-                ))
-            })?;
             let c = o.camera as usize;
             errors.push(
                 reprojection_error(
                     &self.cameras[c],
                     &truth.rig_from_camera[c],
-                    world_from_rig,
+                    &truth.world_from_rig[frame],
                     o,
                 )
                 .unwrap_or(f64::NAN),
@@ -319,6 +313,46 @@ fn lengths(residuals: &[Vector2<f64>]) -> Vec<f64> {
     residuals.iter().map(Vector2::norm).collect()
 }
 
+/// An error naming the first camera localized in none of its images, with the most frequent
+/// reason.
+fn check_every_camera_localized(
+    localizations: &Localizations,
+    names: &[String],
+) -> Result<(), CalibrationError> {
+    for (c, name) in names.iter().enumerate() {
+        let results: Vec<&super::localization::ImageLocalization> = localizations
+            .images
+            .iter()
+            .filter_map(|f| f.get(c))
+            .collect();
+        if results.iter().any(|r| r.is_ok()) {
+            continue;
+        }
+        // The most frequent kind of failure, shown by its first instance.
+        let failures: Vec<&super::localization::LocalizationFailure> =
+            results.iter().filter_map(|r| r.as_ref().err()).collect();
+        let mut best: Option<(&super::localization::LocalizationFailure, usize)> = None;
+        for f in &failures {
+            let n = failures
+                .iter()
+                .filter(|g| std::mem::discriminant(**g) == std::mem::discriminant(*f))
+                .count();
+            if best.is_none_or(|(_, m)| n > m) {
+                best = Some((f, n));
+            }
+        }
+        let reason = best.map_or_else(String::new, |(f, n)| {
+            format!("{f}, in {n} of {} images", results.len())
+        });
+        return Err(CalibrationError::CameraNotLocalized {
+            camera: name.clone(),
+            images: results.len(),
+            reason,
+        });
+    }
+    Ok(())
+}
+
 /// Images, localized images and localization inliers of every camera.
 fn localization_counts(
     localizations: &Localizations,
@@ -395,6 +429,7 @@ pub fn calibrate_with<D: Descriptor>(
     if localized == 0 {
         return Err(CalibrationError::NothingLocalized { images });
     }
+    check_every_camera_localized(&localizations, &log.camera_names)?;
 
     progress.start(Stage::Initialization, 0);
     let t = Instant::now();

@@ -17,23 +17,16 @@ use super::{CalibrateArgs, CliError, Outcome, print};
 
 /// Reads the camera file: a CamOdoCal folder (or its `extrinsic.txt`), else a Kalibr camchain.
 fn read_cameras(path: &Path) -> Result<Rig, CliError> {
-    let error = |e: ibc_camera_models::FileError| CliError::Cameras {
+    let error = |source| CliError::Cameras {
         path: path.to_owned(),
-        message: e.to_string(),
+        source,
     };
     if path.is_dir() {
         Rig::read_camodocal_dir(path).map_err(error)
     } else if path.file_name().is_some_and(|n| n == "extrinsic.txt") {
         Rig::read_camodocal_dir(path.parent().unwrap_or(Path::new("."))).map_err(error)
     } else {
-        let rig = Rig::read_kalibr(path).map_err(error)?;
-        if rig.cameras.is_empty() {
-            return Err(CliError::Cameras {
-                path: path.to_owned(),
-                message: "no camera (`cam0`, `cam1`, ...) in the file".to_owned(),
-            });
-        }
-        Ok(rig)
+        Rig::read_kalibr(path).map_err(error)
     }
 }
 
@@ -107,13 +100,21 @@ fn calibrate_files<D: Descriptor + FileDescriptor>(
     });
     bars.done();
     let log = log?;
+    if let (Some(truth), Some(path)) = (&truth, &args.truth) {
+        truth
+            .check_log(&log.camera_names, log.frames.len())
+            .map_err(|source| CliError::TruthMismatch {
+                path: path.clone(),
+                source,
+            })?;
+    }
     let vocabulary = args
         .vocabulary
         .as_ref()
         .map(|p| {
-            Vocabulary::<D>::load(p).map(Arc::new).map_err(|e| {
-                CliError::Calibration(ibc_pipeline::calib::CalibrationError::Vocabulary(e))
-            })
+            Vocabulary::<D>::load(p)
+                .map(Arc::new)
+                .map_err(|source| CliError::Vocabulary { source })
         })
         .transpose()?;
     let calibration = calibrate_with(&map, &log, &rig, &args.hand_eye.options(), vocabulary, bars)?;

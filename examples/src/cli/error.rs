@@ -3,6 +3,7 @@
 use std::path::PathBuf;
 
 use ibc_pipeline::calib::CalibrationError;
+use ibc_pipeline::data::TruthMismatch;
 use ibc_pipeline::data::io::{DataFileError, DescriptorLayout};
 use ibc_pipeline::intrinsics::IntrinsicsError;
 use ibc_pipeline::report::OutputError;
@@ -22,17 +23,27 @@ pub enum CliError {
         /// The reader's error, naming the file.
         source: DataFileError,
     },
+    /// The ground truth is not the truth of the rig log.
+    #[error("ground truth {}: {source}", path.display())]
+    TruthMismatch {
+        /// The ground-truth file.
+        path: PathBuf,
+        /// What differs.
+        source: TruthMismatch,
+    },
     /// The camera file could not be read.
-    #[error(
-        "camera file {}: {message} (expected a Kalibr camchain YAML, or a CamOdoCal folder \
-         with extrinsic.txt and <name>_camera_calib.yaml files)",
-        path.display()
-    )]
+    #[error("{}", camera_file_message(path, source))]
     Cameras {
         /// The file or folder given.
         path: PathBuf,
-        /// The reader's message.
-        message: String,
+        /// The reader's error.
+        source: ibc_camera_models::FileError,
+    },
+    /// The vocabulary file could not be read.
+    #[error("vocabulary: {source}")]
+    Vocabulary {
+        /// The reader's error, naming the file.
+        source: ibc_vocab_tree::VocabError,
     },
     /// The map and the log hold different kinds of descriptors.
     #[error(
@@ -63,6 +74,35 @@ pub enum CliError {
     /// Standard output could not be written.
     #[error("cannot write to standard output: {0}")]
     Stdout(std::io::Error),
+}
+
+/// The message of a camera-file error: the path once (the reader's error names the file it
+/// was reading, inside a CamOdoCal folder too), and what a camera file is when the file was
+/// not one.
+fn camera_file_message(path: &std::path::Path, error: &ibc_camera_models::FileError) -> String {
+    use ibc_camera_models::FileError as E;
+    let named = if error.path().is_some() {
+        format!("camera file: {error}")
+    } else {
+        format!("camera file {}: {error}", path.display())
+    };
+    let not_a_camera_file = match error {
+        E::InFile { source, .. } => {
+            !matches!(**source, E::Implausible { .. } | E::Parameters { .. })
+        }
+        E::Implausible { .. }
+        | E::Parameters { .. }
+        | E::TooLarge { .. }
+        | E::NotRegularFile { .. } => false,
+        _ => true,
+    };
+    if not_a_camera_file {
+        named
+            + " (expected a Kalibr camchain YAML, or a CamOdoCal folder with extrinsic.txt and \
+               a <name>_calib.yaml or <name>_camera_calib.yaml file per camera)"
+    } else {
+        named
+    }
 }
 
 /// A likely cause of a data-file error the reader's message does not already give.

@@ -93,14 +93,17 @@
 //!   "scenario": "garage",
 //!   "seed": 1,
 //!   "pixel_noise_px": 0.5,
+//!   "camera_names": ["front", "left", "rear", "right"],
 //!   "rig_from_camera": [{"translation": [x, y, z], "rotation_wxyz": [w, x, y, z]}, ...],
 //!   "rig_from_odometry": {"translation": [...], "rotation_wxyz": [...]} or null,
 //!   "world_from_rig": [{"translation": [...], "rotation_wxyz": [...]}, ...]
 //! }
 //! ```
 //!
-//! `rig_from_camera` holds the true extrinsics of the calibrated rig, one per camera in the
-//! log's order, in the simulator's vehicle frame (x forward, y left, z up); a calibration's
+//! `camera_names` (optional) are the log's camera names in its order; `ibc calibrate --truth`
+//! refuses a truth whose names, camera count or number of `world_from_rig` poses differ from
+//! the log's. `rig_from_camera` holds the true extrinsics of the calibrated rig, one per camera
+//! in the log's order, in the simulator's vehicle frame (x forward, y left, z up); a calibration's
 //! rig frame is its camera 0, so compare poses relative to camera 0. `world_from_rig` holds
 //! the true rig pose at every frame of the log; `rig_from_odometry` the true transform from
 //! the odometry frame into the vehicle frame (null without odometry). Unknown fields are an
@@ -148,6 +151,7 @@ mod checksum;
 mod descriptor;
 mod error;
 mod features;
+mod input;
 mod log_format;
 mod map_format;
 mod truth_json;
@@ -161,6 +165,10 @@ pub(crate) use bytes::unit_quaternion;
 pub use checksum::xxh64;
 pub use descriptor::FileDescriptor;
 pub use error::{DataFileError, DescriptorLayout, FormatError};
+pub use input::{
+    MAX_BINARY_INPUT_BYTES, MAX_SCENARIO_BYTES, MAX_TEXT_INPUT_BYTES, open_regular, read_input,
+    read_text_input,
+};
 pub use log_format::{MAX_CAMERA_NAME_BYTES, log_from_bytes, log_to_bytes};
 pub use map_format::{NO_POINT, map_from_bytes, map_to_bytes};
 pub use truth_json::{TRUTH_FORMAT, truth_from_json, truth_to_json};
@@ -183,7 +191,7 @@ pub mod file_names {
 }
 
 fn read_bytes(path: &Path) -> Result<Vec<u8>, DataFileError> {
-    std::fs::read(path).map_err(|source| DataFileError::Io {
+    read_input(path, MAX_BINARY_INPUT_BYTES).map_err(|source| DataFileError::Io {
         path: path.to_owned(),
         source,
     })
@@ -249,7 +257,7 @@ pub fn write_log<D: FileDescriptor>(
 /// valid ground truth.
 pub fn read_truth(path: impl AsRef<Path>) -> Result<GroundTruth, DataFileError> {
     let path = path.as_ref();
-    let text = std::fs::read_to_string(path).map_err(|source| DataFileError::Io {
+    let text = read_text_input(path, MAX_TEXT_INPUT_BYTES).map_err(|source| DataFileError::Io {
         path: path.to_owned(),
         source,
     })?;
@@ -287,8 +295,9 @@ pub fn read_descriptor_layout(path: impl AsRef<Path>) -> Result<DescriptorLayout
         source,
     };
     let mut header = Vec::with_capacity(bytes::COMMON_HEADER_LEN);
-    std::fs::File::open(path)
+    open_regular(path)
         .map_err(io)?
+        .0
         .take(bytes::COMMON_HEADER_LEN as u64)
         .read_to_end(&mut header)
         .map_err(io)?;

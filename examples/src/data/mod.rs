@@ -120,4 +120,71 @@ pub struct GroundTruth {
     pub rig_from_odometry: Option<Isometry3<f64>>,
     /// Standard deviation of the keypoint noise, pixels per axis.
     pub pixel_noise_px: f64,
+    /// The log's camera names, in its order (empty when the file does not say: older files).
+    pub camera_names: Vec<String>,
+}
+
+/// Why a ground truth is not the truth of a rig log.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[non_exhaustive]
+pub enum TruthMismatch {
+    /// The truth has a rig pose per frame of another log.
+    #[error(
+        "the ground truth has {truth} frames but the rig log {log}: is it the truth of this \
+         log?"
+    )]
+    Frames {
+        /// Rig poses in the truth.
+        truth: usize,
+        /// Frames in the log.
+        log: usize,
+    },
+    /// The truth has another number of cameras.
+    #[error("the ground truth has {truth} cameras but the rig log {log}")]
+    CameraCount {
+        /// Cameras in the truth.
+        truth: usize,
+        /// Cameras in the log.
+        log: usize,
+    },
+    /// The truth names other cameras, or the same in another order.
+    #[error(
+        "the ground truth names the cameras {} but the rig log {}",
+        truth.join(", "),
+        log.join(", ")
+    )]
+    CameraNames {
+        /// The truth's names.
+        truth: Vec<String>,
+        /// The log's names.
+        log: Vec<String>,
+    },
+}
+
+impl GroundTruth {
+    /// Checks that this is the truth of a log with these camera names and this many frames.
+    ///
+    /// # Errors
+    /// [`TruthMismatch`] saying what differs.
+    pub fn check_log(&self, camera_names: &[String], frames: usize) -> Result<(), TruthMismatch> {
+        if self.rig_from_camera.len() != camera_names.len() {
+            return Err(TruthMismatch::CameraCount {
+                truth: self.rig_from_camera.len(),
+                log: camera_names.len(),
+            });
+        }
+        if !self.camera_names.is_empty() && self.camera_names != camera_names {
+            return Err(TruthMismatch::CameraNames {
+                truth: self.camera_names.clone(),
+                log: camera_names.to_vec(),
+            });
+        }
+        if self.world_from_rig.len() != frames {
+            return Err(TruthMismatch::Frames {
+                truth: self.world_from_rig.len(),
+                log: frames,
+            });
+        }
+        Ok(())
+    }
 }

@@ -162,10 +162,11 @@ impl CornerSet {
     /// [`from_json_str`](Self::from_json_str), naming the file.
     pub fn read(path: impl AsRef<Path>) -> Result<Self, IntrinsicsError> {
         let path = path.as_ref();
-        let text = std::fs::read_to_string(path).map_err(|source| IntrinsicsError::Io {
-            path: path.to_owned(),
-            source,
-        })?;
+        let text = crate::data::io::read_text_input(path, crate::data::io::MAX_TEXT_INPUT_BYTES)
+            .map_err(|source| IntrinsicsError::Io {
+                path: path.to_owned(),
+                source,
+            })?;
         Self::from_json_str(&text).map_err(|e| match e {
             IntrinsicsError::CornerFile { message, .. } => IntrinsicsError::CornerFile {
                 path: Some(path.to_owned()),

@@ -34,12 +34,16 @@
 //! }
 //! ```
 
+use ibc_hand_eye::HandEyeError;
 use nalgebra::{Isometry3, Vector3};
 use serde::Serialize;
 
 use crate::calib::accuracy::relative_to_first;
 use crate::calib::quality::{CameraQuality, ResidualPattern, ResidualStats};
-use crate::calib::{Calibration, CalibrationError, InitialHypothesis, Status, Timing};
+use crate::calib::{
+    Calibration, CalibrationError, CameraMatching, HandEyeFailure, InitialHypothesis, Status,
+    Timing,
+};
 use crate::data::GroundTruth;
 
 /// The value of [`Report::format`].
@@ -309,8 +313,43 @@ pub struct Report {
     pub status: Status,
     /// The failed quality gates, each naming the camera and the likely cause.
     pub warnings: Vec<WarningJson>,
+    /// What the reader should know about how the inputs were taken (cameras matched by order
+    /// because the camera file has no names, IMU transforms carried over); absent when none.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub notes: Vec<String>,
     /// Seconds per stage.
     pub timing_s: Timing,
+}
+
+/// The report's notes (see [`Report::notes`]).
+fn notes(calibration: &Calibration) -> Vec<String> {
+    let mut notes = Vec::new();
+    let prior = &calibration.prior_rig.cameras;
+    if calibration.camera_matching == CameraMatching::ByOrder {
+        let pairs: Vec<String> = prior
+            .iter()
+            .zip(&calibration.camera_names)
+            .map(|(p, name)| format!("{} = {name}", p.name))
+            .collect();
+        notes.push(format!(
+            "the camera file names no cameras: matched to the log by order ({})",
+            pairs.join(", ")
+        ));
+    }
+    if prior.iter().any(|c| c.camera_from_imu.is_some()) {
+        let reference = calibration.camera_names.first().map_or("", String::as_str);
+        notes.push(match prior.first().and_then(|c| c.camera_from_imu) {
+            Some(_) => format!(
+                "the camera file's T_cam_imu is written for every camera through `{reference}`'s, \
+                 which defines the rig frame (the IMU is taken as fixed to it)"
+            ),
+            None => format!(
+                "the camera file's T_cam_imu is not written: `{reference}`, which defines the rig \
+                 frame, has none"
+            ),
+        });
+    }
+    notes
 }
 
 impl Report {
@@ -383,7 +422,12 @@ impl Report {
                     .hand_eye_solver
                     .map_or("none", |s| s.name())
                     .to_owned(),
-                error: Some(e.to_string()),
+                error: Some(match e {
+                    HandEyeFailure::Solver(HandEyeError::ParallelRotationAxes { .. }) => {
+                        format!("{e} (`ibc --hand-eye planar`)")
+                    }
+                    _ => e.to_string(),
+                }),
                 rig_from_odometry: None,
                 height_observable: false,
                 odometry_from_rig_std: None,
@@ -441,6 +485,7 @@ impl Report {
                     message: w.to_string(),
                 })
                 .collect(),
+            notes: notes(calibration),
             timing_s: *t,
         })
     }

@@ -73,6 +73,9 @@ fn quality_rows(s: &mut String, report: &Report) {
     for w in &report.warnings {
         let _ = writeln!(s, "warning: {}", w.message);
     }
+    for n in &report.notes {
+        let _ = writeln!(s, "note: {n}");
+    }
 }
 
 /// The text summary (see the module docs).

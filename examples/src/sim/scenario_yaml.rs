@@ -191,6 +191,8 @@ impl Parser<'_> {
     }
 
     fn parse(&self, text: &str, base_dir: &Path) -> Result<Scenario, SimError> {
+        // Aliases and deep nesting would make the loader expand without bound.
+        ibc_camera_models::check_yaml_input(text).map_err(|e| self.err(e.to_string()))?;
         let docs = YamlLoader::load_from_str(text)
             .map_err(|e| self.err(format!("not valid YAML: {e}")))?;
         let doc = docs
@@ -551,10 +553,11 @@ impl Scenario {
     /// key at fault otherwise.
     pub fn from_yaml_file(path: impl AsRef<Path>) -> Result<Self, SimError> {
         let path = path.as_ref();
-        let text = std::fs::read_to_string(path).map_err(|source| SimError::Io {
-            path: path.to_owned(),
-            source,
-        })?;
+        let text = crate::data::io::read_text_input(path, crate::data::io::MAX_SCENARIO_BYTES)
+            .map_err(|source| SimError::Io {
+                path: path.to_owned(),
+                source,
+            })?;
         let base_dir = path.parent().map_or_else(PathBuf::new, Path::to_path_buf);
         Parser { path: Some(path) }.parse(&text, &base_dir)
     }

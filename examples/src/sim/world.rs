@@ -301,6 +301,7 @@ impl SimulatedWorld {
             rig_from_odometry: (scenario.odometry != OdometryKind::None)
                 .then_some(true_rig.rig_from_odometry),
             pixel_noise_px: scenario.noise.pixel_sigma_px,
+            camera_names: log.camera_names.clone(),
         };
         Ok(Self {
             scenario: scenario.clone(),

@@ -45,6 +45,8 @@ struct JsonTruth {
     scenario: String,
     seed: u64,
     pixel_noise_px: f64,
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    camera_names: Vec<String>,
     rig_from_camera: Vec<JsonPose>,
     rig_from_odometry: Option<JsonPose>,
     world_from_rig: Vec<JsonPose>,
@@ -61,6 +63,7 @@ pub fn truth_to_json(truth: &GroundTruth) -> Result<String, serde_json::Error> {
         scenario: truth.scenario.clone(),
         seed: truth.seed,
         pixel_noise_px: truth.pixel_noise_px,
+        camera_names: truth.camera_names.clone(),
         rig_from_camera: truth.rig_from_camera.iter().map(JsonPose::from).collect(),
         rig_from_odometry: truth.rig_from_odometry.as_ref().map(JsonPose::from),
         world_from_rig: truth.world_from_rig.iter().map(JsonPose::from).collect(),
@@ -100,6 +103,13 @@ pub fn truth_from_json(text: &str) -> Result<GroundTruth, serde_json::Error> {
             "pixel_noise_px must be finite and non-negative",
         ));
     }
+    if !j.camera_names.is_empty() && j.camera_names.len() != j.rig_from_camera.len() {
+        return Err(Error::custom(format!(
+            "{} camera_names for {} rig_from_camera",
+            j.camera_names.len(),
+            j.rig_from_camera.len()
+        )));
+    }
     let poses = |v: &[JsonPose], what: &str| -> Result<Vec<Isometry3<f64>>, serde_json::Error> {
         v.iter()
             .enumerate()
@@ -117,5 +127,6 @@ pub fn truth_from_json(text: &str) -> Result<GroundTruth, serde_json::Error> {
             .map(|p| p.to_pose("rig_from_odometry"))
             .transpose()?,
         pixel_noise_px: j.pixel_noise_px,
+        camera_names: j.camera_names,
     })
 }
