@@ -4,22 +4,12 @@
 
 mod cli_common;
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
-use cli_common::{entries, ibc, stderr};
+use cli_common::{check_failure, entries, files, ibc};
 use ibc_camera_models::Rig;
 use ibc_pipeline::data::BinaryDescriptor;
 use ibc_pipeline::data::io::{read_log, write_log};
-use ibc_pipeline::sim::{Scenario, SimulatedWorld};
-
-/// A small simulated world written to `dir` (map, log, camchain, truth).
-fn world(dir: &Path) -> ibc_pipeline::sim::WrittenFiles {
-    let scenario = Scenario::builtin("garage").unwrap().with_scale(0.05);
-    SimulatedWorld::simulate(&scenario)
-        .unwrap()
-        .write(dir)
-        .unwrap()
-}
 
 /// Runs `ibc calibrate` and checks the failure: exit code 1, one line on stderr containing
 /// every one of `expected`, nothing written to the output folder.
@@ -45,41 +35,6 @@ fn fails(map: &Path, log: &Path, cameras: &Path, expected: &[&str]) {
         entries(&target)
     );
     assert!(entries(out.path()).is_empty(), "{:?}", entries(out.path()));
-}
-
-fn check_failure(o: &std::process::Output, expected: &[&str]) {
-    let err = stderr(o);
-    assert_eq!(o.status.code(), Some(1), "{err}");
-    assert!(
-        o.stdout.is_empty(),
-        "{}",
-        String::from_utf8_lossy(&o.stdout)
-    );
-    assert_eq!(err.lines().count(), 1, "not one line: {err}");
-    assert!(err.starts_with("error: "), "{err}");
-    for e in expected {
-        assert!(err.contains(e), "`{e}` not in: {err}");
-    }
-}
-
-struct Files {
-    _dir: tempfile::TempDir,
-    map: PathBuf,
-    log: PathBuf,
-    cameras: PathBuf,
-    dir: PathBuf,
-}
-
-fn files() -> Files {
-    let dir = tempfile::tempdir().unwrap();
-    let w = world(dir.path());
-    Files {
-        dir: dir.path().to_owned(),
-        _dir: dir,
-        map: w.map,
-        log: w.log,
-        cameras: w.cameras,
-    }
 }
 
 #[test]
@@ -198,7 +153,10 @@ fn a_log_without_complete_frame_sets_is_refused() {
         &f.map,
         &blind,
         &f.cameras,
-        &["camera `rear` was localized in none of its", "the image has no feature"],
+        &[
+            "camera `rear` was localized in none of its",
+            "the image has no feature",
+        ],
     );
     // Cameras 2 and 3 saw nothing in turns: each is localized, never all four together.
     let mut log = read_log::<BinaryDescriptor>(&f.log).unwrap();

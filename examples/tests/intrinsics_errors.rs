@@ -8,8 +8,8 @@ mod intrinsics_common;
 
 use ibc_pipeline::intrinsics::simulate::BoardSimulationOptions;
 use ibc_pipeline::intrinsics::{
-    CornerSet, IntrinsicModel, IntrinsicsError, IntrinsicsOptions, MIN_CORNERS_PER_IMAGE,
-    MIN_IMAGES, calibrate_intrinsics, normal_spread_deg,
+    CornerSet, ImageStatus, IntrinsicModel, IntrinsicsError, IntrinsicsOptions,
+    MIN_CORNERS_PER_IMAGE, MIN_IMAGES, calibrate_intrinsics, normal_spread_deg,
 };
 use intrinsics_common::{simulated, simulated_with};
 
@@ -50,14 +50,31 @@ fn too_few_images_or_corners() {
             run(&few, model),
             Err(IntrinsicsError::TooFewImages { got, needed: MIN_IMAGES }) if got == MIN_IMAGES - 1
         ));
+        // An image with too few corners (a detector that failed on it) is skipped, named in
+        // the result, and the others calibrate.
         let mut sparse = sim.corners.clone();
         sparse.images[4].corners.truncate(MIN_CORNERS_PER_IMAGE - 1);
-        let err = run(&sparse, model).unwrap_err();
+        let target = sparse.board.unwrap();
+        let c =
+            calibrate_intrinsics(&sparse, &target, model, &IntrinsicsOptions::default()).unwrap();
+        assert_eq!(c.per_image[4].name, "view_004");
+        assert_eq!(c.per_image[4].status, ImageStatus::TooFewCorners);
+        assert!(c.per_image[4].residuals.is_empty() && c.camera_from_board[4].is_none());
         assert!(
-            matches!(&err, IntrinsicsError::TooFewCorners { image, got, .. }
-                if image == "view_004" && *got == MIN_CORNERS_PER_IMAGE - 1),
-            "{err}"
+            c.per_image
+                .iter()
+                .enumerate()
+                .all(|(i, e)| i == 4 || e.status == ImageStatus::Used)
         );
+        assert!(c.warnings.is_empty(), "{:?}", c.warnings);
+        // Too few images left: an error that counts the usable ones.
+        for image in &mut sparse.images[MIN_IMAGES - 1..] {
+            image.corners.truncate(MIN_CORNERS_PER_IMAGE - 1);
+        }
+        assert!(matches!(
+            run(&sparse, model),
+            Err(IntrinsicsError::TooFewImages { got, needed: MIN_IMAGES }) if got == MIN_IMAGES - 1
+        ));
     }
 }
 

@@ -8,7 +8,7 @@ use std::path::PathBuf;
 use clap::Args;
 use ibc_pipeline::intrinsics::command::{CornerSource, IntrinsicsJob, IntrinsicsOutcome, run_job};
 use ibc_pipeline::intrinsics::simulate::BoardSimulationOptions;
-use ibc_pipeline::intrinsics::{IntrinsicModel, IntrinsicsError, PlanarTarget};
+use ibc_pipeline::intrinsics::{IntrinsicModel, IntrinsicsError, IntrinsicsStatus, PlanarTarget};
 
 use super::CliError;
 
@@ -40,6 +40,9 @@ pub struct IntrinsicsArgs {
     /// Print the JSON report on standard output instead of the summary.
     #[arg(long)]
     pub json: bool,
+    /// No summary on standard output (the JSON report is still printed with --json).
+    #[arg(long)]
+    pub quiet: bool,
     /// The camera's name in the output files.
     #[arg(long, value_name = "NAME", default_value = "cam0")]
     pub name: String,
@@ -100,7 +103,9 @@ pub fn job(args: &IntrinsicsArgs) -> Result<IntrinsicsJob, IntrinsicsError> {
         })?;
         CornerSource::File(path)
     };
-    let mut job = IntrinsicsJob::new(source, args.model, &args.out).with_json(args.json);
+    let mut job = IntrinsicsJob::new(source, args.model, &args.out)
+        .with_json(args.json)
+        .with_quiet(args.quiet);
     job.camera_name.clone_from(&args.name);
     if let (Some(board), Some(square)) = (&args.board, args.square) {
         job = job.with_board(PlanarTarget::parse(board, square)?);
@@ -120,11 +125,15 @@ pub fn run(args: &IntrinsicsArgs) -> Result<IntrinsicsOutcome, IntrinsicsError> 
 }
 
 /// [`run`] for the command dispatch: its error becomes a [`CliError`], printed as one line by
-/// `main`. Output files are written all or nothing, so none is left behind.
+/// `main`. Output files are written all or nothing, so none is left behind; a calibration
+/// that fails its quality gates is written and reported as [`super::Outcome::Poor`].
 ///
 /// # Errors
 /// [`CliError::Intrinsics`] with [`run`]'s error.
 pub fn run_command(args: &IntrinsicsArgs) -> Result<super::Outcome, CliError> {
-    run(args)?;
-    Ok(super::Outcome::Done)
+    let outcome = run(args)?;
+    Ok(match outcome.calibration.status() {
+        IntrinsicsStatus::Ok => super::Outcome::Done,
+        IntrinsicsStatus::Poor => super::Outcome::Poor,
+    })
 }

@@ -9,11 +9,11 @@ use nalgebra::{Isometry3, SMatrix, Vector2};
 use serde::{Deserialize, Serialize};
 
 use super::board_pose::{ImageCorrespondences, all_correspondences};
-use super::corners::CornerSet;
+use super::corners::{CornerSet, ImageCorners};
 use super::error::IntrinsicsError;
 use super::kb_init::{FocalHypothesis, KbInitOptions, kannala_brandt_initialization};
 use super::pinhole_init::pinhole_initialization;
-use super::refine::refine;
+use super::robust::robust_refine;
 use super::target::PlanarTarget;
 use super::zhang::ZhangIntrinsics;
 
@@ -147,6 +147,34 @@ pub enum Initialization {
     Zhang(ZhangIntrinsics),
 }
 
+/// What became of an input image.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ImageStatus {
+    /// Its inlier corners are in the calibration.
+    Used,
+    /// Skipped: fewer than [`MIN_CORNERS_PER_IMAGE`] corners (a detector that failed on it).
+    TooFewCorners,
+    /// Excluded: most of its corners did not fit the others (garbage corners, a wrong
+    /// ordering); see [`super::robust`].
+    Outliers,
+}
+
+/// One corner's residual at the solution.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct CornerResidual {
+    /// Board row.
+    pub row: u32,
+    /// Board column.
+    pub col: u32,
+    /// Projected minus detected, horizontal, pixels.
+    pub du: f64,
+    /// Projected minus detected, vertical, pixels.
+    pub dv: f64,
+    /// Excluded as an outlier.
+    pub outlier: bool,
+}
+
 /// Reprojection errors of one image at the solution.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct ImageError {
@@ -154,10 +182,17 @@ pub struct ImageError {
     pub name: String,
     /// Its number of corners.
     pub corners: usize,
-    /// RMS of the residual coordinates, pixels.
+    /// Whether it was used.
+    pub status: ImageStatus,
+    /// Its corners excluded as outliers.
+    pub outliers: usize,
+    /// RMS of the residual coordinates of its inlier corners, pixels (NaN, `null` in JSON,
+    /// when it was not used).
     pub rms_px: f64,
-    /// Largest residual length, pixels.
+    /// Largest residual length of its inlier corners, pixels.
     pub max_px: f64,
+    /// Every corner's residual (none for a skipped image).
+    pub residuals: Vec<CornerResidual>,
 }
 
 /// The result of [`calibrate_intrinsics`].
@@ -172,17 +207,29 @@ pub struct IntrinsicCalibration {
     pub initial_camera: Camera,
     /// How the initialization went.
     pub initialization: Initialization,
-    /// `camera_from_board` of every image, in input order.
-    pub camera_from_board: Vec<Isometry3<f64>>,
-    /// Every corner's residual `pi(T X) - x` (pixels), image by image, in input order.
+    /// `camera_from_board` of every image, in input order (`None` for a skipped image).
+    pub camera_from_board: Vec<Option<Isometry3<f64>>>,
+    /// Every corner's residual `pi(T X) - x` (pixels), image by image, in input order (none
+    /// for a skipped image; an excluded image's with its pose re-estimated).
     pub residuals: Vec<Vec<Vector2<f64>>>,
+    /// Whether each of those corners is an inlier of the final refinement.
+    pub inliers: Vec<Vec<bool>>,
     /// Per-image errors, in input order.
     pub per_image: Vec<ImageError>,
-    /// RMS of all residual coordinates (pixels): comparable to the per-axis pixel noise.
+    /// RMS of the inlier residual coordinates (pixels): comparable to the per-axis pixel
+    /// noise.
     pub rms_px: f64,
-    /// RMS of the residual lengths (pixels): OpenCV's `calibrateCamera` figure, `sqrt(2)`
-    /// times `rms_px` for isotropic noise.
+    /// RMS of the inlier residual lengths (pixels): OpenCV's `calibrateCamera` figure,
+    /// `sqrt(2)` times `rms_px` for isotropic noise.
     pub rms_distance_px: f64,
+    /// The residual length above which a corner was an outlier, pixels (see
+    /// [`super::robust`]).
+    pub outlier_px: f64,
+    /// Corners excluded as outliers (those of excluded images included).
+    pub outlier_corners: usize,
+    /// The quality gates that failed ([`IntrinsicsWarning`]): a calibration with any is
+    /// [`IntrinsicsStatus::Poor`].
+    pub warnings: Vec<IntrinsicsWarning>,
     /// RMS of the residual coordinates after the initialization (pixels).
     pub initial_rms_px: f64,
     /// Standard deviation of each parameter (CamOdoCal order), from `covariance`.
@@ -199,6 +246,144 @@ pub struct IntrinsicCalibration {
     pub iterations: usize,
     /// Why Levenberg-Marquardt stopped.
     pub termination: Termination,
+}
+
+/// A calibration is poor when its RMS per coordinate exceeds this, pixels: a corner
+/// detector's noise is 0.05-0.5 px (OpenCV's `cornerSubPix` on a sharp board about 0.1 px),
+/// so an RMS above 1 px means corners that do not belong to the board assumed, or a model
+/// that cannot fit the lens.
+pub const MAX_RMS_PX: f64 = 1.0;
+
+/// A calibration is poor when a focal length's standard deviation exceeds this fraction of
+/// its value: 1% (good calibrations reach 0.1% and better; the simulated 20 views 0.02%).
+pub const MAX_FOCAL_RELATIVE_STD: f64 = 0.01;
+
+/// A calibration is poor when a principal-point coordinate's standard deviation exceeds this
+/// fraction of the image size along it: 1% (12.8 px on a 1280 px image).
+pub const MAX_CENTER_RELATIVE_STD: f64 = 0.01;
+
+/// A calibration is poor when more than this share of the corners are outliers: 10%.
+pub const MAX_OUTLIER_SHARE: f64 = 0.1;
+
+/// Why an intrinsic calibration should not be trusted as it is.
+#[derive(Clone, Debug, PartialEq, Serialize, thiserror::Error)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+#[non_exhaustive]
+pub enum IntrinsicsWarning {
+    /// The residuals are far above a corner detector's noise.
+    #[error(
+        "RMS {rms_px:.3} px per coordinate is far above a corner detector's noise (at most \
+         {limit_px} px expected): a wrong board size or square, mismatched corner indices, or a \
+         model that cannot fit the lens?"
+    )]
+    HighRms {
+        /// The RMS per coordinate, pixels.
+        rms_px: f64,
+        /// [`MAX_RMS_PX`].
+        limit_px: f64,
+    },
+    /// A parameter is poorly determined by the views.
+    #[error(
+        "the views do not determine `{parameter}` well: standard deviation {std:.3} px, \
+         {percent:.2}% of {reference}; add views that tilt the board in different directions \
+         and bring it to the image's edges",
+        percent = 100.0 * std / scale
+    )]
+    Undetermined {
+        /// The parameter's name.
+        parameter: String,
+        /// Its standard deviation, pixels.
+        std: f64,
+        /// What it is compared with, pixels.
+        scale: f64,
+        /// `"its value"` or `"the image size"`.
+        reference: &'static str,
+    },
+    /// Many corners were outliers.
+    #[error(
+        "{outliers} of {corners} corners ({percent:.1}%) did not fit the others and were \
+         excluded: is the detector reliable on these images?",
+        percent = 100.0 * *outliers as f64 / *corners as f64
+    )]
+    ManyOutliers {
+        /// Outlier corners.
+        outliers: usize,
+        /// All corners of the images used or excluded.
+        corners: usize,
+    },
+    /// The refinement did not converge.
+    #[error("the refinement stopped without converging ({termination})")]
+    NotConverged {
+        /// Why it stopped.
+        termination: String,
+    },
+}
+
+/// Whether an intrinsic calibration can be trusted as it is.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum IntrinsicsStatus {
+    /// Every gate passed.
+    Ok,
+    /// A gate failed: see the warnings.
+    Poor,
+}
+
+impl IntrinsicCalibration {
+    /// [`IntrinsicsStatus::Poor`] when a quality gate failed.
+    pub fn status(&self) -> IntrinsicsStatus {
+        if self.warnings.is_empty() {
+            IntrinsicsStatus::Ok
+        } else {
+            IntrinsicsStatus::Poor
+        }
+    }
+}
+
+/// The gates of an intrinsic calibration (see the constants).
+fn gates(
+    camera: &Camera,
+    std_devs: &[f64; 8],
+    rms_px: f64,
+    outliers: usize,
+    corners: usize,
+    termination: Termination,
+) -> Vec<IntrinsicsWarning> {
+    let mut warnings = Vec::new();
+    if !(rms_px <= MAX_RMS_PX) {
+        warnings.push(IntrinsicsWarning::HighRms {
+            rms_px,
+            limit_px: MAX_RMS_PX,
+        });
+    }
+    let names = camera.param_names();
+    let params = camera.params();
+    let sizes = [f64::from(camera.width()), f64::from(camera.height())];
+    // Both models order their parameters [.., fx, fy, cx, cy] in the last four.
+    for (k, i) in (4..8).enumerate() {
+        let (scale, limit, reference) = if k < 2 {
+            (params[i].abs(), MAX_FOCAL_RELATIVE_STD, "its value")
+        } else {
+            (sizes[k - 2], MAX_CENTER_RELATIVE_STD, "the image size")
+        };
+        if !(std_devs[i] <= limit * scale) {
+            warnings.push(IntrinsicsWarning::Undetermined {
+                parameter: names[i].to_owned(),
+                std: std_devs[i],
+                scale,
+                reference,
+            });
+        }
+    }
+    if corners > 0 && outliers as f64 > MAX_OUTLIER_SHARE * corners as f64 {
+        warnings.push(IntrinsicsWarning::ManyOutliers { outliers, corners });
+    }
+    if !termination.is_converged() {
+        warnings.push(IntrinsicsWarning::NotConverged {
+            termination: termination.name().to_owned(),
+        });
+    }
+    warnings
 }
 
 /// The largest angle between the normals of two boards (degrees): 0 when every board is
@@ -235,17 +420,35 @@ pub fn calibrate_intrinsics(
     options: &IntrinsicsOptions,
 ) -> Result<IntrinsicCalibration, IntrinsicsError> {
     target.validate()?;
-    corners.validate(target, MIN_CORNERS_PER_IMAGE, MIN_IMAGES)?;
+    // Every corner must be on the board and in the image; an image with too few corners (a
+    // detector that failed on it) is skipped, not fatal.
+    corners.validate(target, 0, 0)?;
     if !(options.min_normal_spread_deg.is_finite() && options.min_normal_spread_deg >= 0.0) {
         return Err(IntrinsicsError::InvalidInput(format!(
             "min_normal_spread_deg must be finite and non-negative, got {}",
             options.min_normal_spread_deg
         )));
     }
+    let usable_index: Vec<usize> = (0..corners.images.len())
+        .filter(|&i| corners.images[i].corners.len() >= MIN_CORNERS_PER_IMAGE)
+        .collect();
+    let usable = CornerSet {
+        images: usable_index
+            .iter()
+            .map(|&i| corners.images[i].clone())
+            .collect(),
+        ..corners.clone()
+    };
+    if usable.images.len() < MIN_IMAGES {
+        return Err(IntrinsicsError::TooFewImages {
+            got: usable.images.len(),
+            needed: MIN_IMAGES,
+        });
+    }
     let (w, h) = (corners.width, corners.height);
     let (initial_camera, initial_poses, initialization): (Camera, _, _) = match model {
         IntrinsicModel::KannalaBrandt => {
-            let init = kannala_brandt_initialization(corners, target, &options.kb_init)?;
+            let init = kannala_brandt_initialization(&usable, target, &options.kb_init)?;
             (
                 init.camera.into(),
                 init.camera_from_board,
@@ -256,7 +459,7 @@ pub fn calibrate_intrinsics(
             )
         }
         IntrinsicModel::PinholeRadtan => {
-            let init = pinhole_initialization(corners, target)?;
+            let init = pinhole_initialization(&usable, target)?;
             (
                 init.camera.into(),
                 init.camera_from_board,
@@ -275,50 +478,81 @@ pub fn calibrate_intrinsics(
             ),
         });
     }
-    let data = all_correspondences(target, corners);
+    let data = all_correspondences(target, &usable);
     let mut initial = [0.0; 8];
     initial.copy_from_slice(initial_camera.params());
-    let initial_rms_px = residual_stats(&initial_camera, &initial_poses, &data)?.0;
-    let refined = refine(
+    let initial_rms_px = residual_stats(&initial_camera, &initial_poses, &data, None).0;
+    let robust = robust_refine(
         model,
-        w,
-        h,
+        (w, h),
         &initial,
         &initial_poses,
         &data,
         &options.solver,
     )?;
+    let refined = &robust.refined;
     let camera = model.camera(w, h, &refined.params)?;
-    let (rms_px, rms_distance_px, residuals) =
-        residual_stats(&camera, &refined.camera_from_board, &data)?;
-    let per_image = corners
+    let (rms_px, rms_distance_px, usable_residuals) = residual_stats(
+        &camera,
+        &refined.camera_from_board,
+        &data,
+        Some(&robust.inliers),
+    );
+    // Back to the input's images: a skipped image has no residuals.
+    let mut residuals = vec![Vec::new(); corners.images.len()];
+    let mut inliers = vec![Vec::new(); corners.images.len()];
+    let mut camera_from_board = vec![None; corners.images.len()];
+    for (k, &i) in usable_index.iter().enumerate() {
+        residuals[i].clone_from(&usable_residuals[k]);
+        inliers[i].clone_from(&robust.inliers[k]);
+        camera_from_board[i] = refined.camera_from_board.get(k).copied();
+    }
+    let per_image: Vec<ImageError> = corners
         .images
         .iter()
-        .zip(&residuals)
-        .map(|(image, r)| {
-            let n = r.len().max(1) as f64;
-            ImageError {
-                name: image.name.clone(),
-                corners: r.len(),
-                rms_px: (r.iter().map(|e| e.norm_squared()).sum::<f64>() / (2.0 * n)).sqrt(),
-                max_px: r.iter().map(|e| e.norm()).fold(0.0, f64::max),
-            }
+        .enumerate()
+        .map(|(i, image)| {
+            let status = match usable_index.iter().position(|&u| u == i) {
+                None => ImageStatus::TooFewCorners,
+                Some(k) if !robust.kept[k] => ImageStatus::Outliers,
+                Some(_) => ImageStatus::Used,
+            };
+            image_error(image, status, &residuals[i], &inliers[i])
         })
         .collect();
-    let std_devs = std::array::from_fn(|i| refined.covariance[(i, i)].max(0.0).sqrt());
+    let outlier_corners = inliers.iter().flatten().filter(|&&i| !i).count();
+    let used_corners = inliers.iter().map(Vec::len).sum();
+    let covariance = refined.covariance.ok_or_else(|| {
+        IntrinsicsError::SingularInformation(
+            "some intrinsic parameter is not observable from these views".into(),
+        )
+    })?;
+    let std_devs = std::array::from_fn(|i| covariance[(i, i)].max(0.0).sqrt());
+    let warnings = gates(
+        &camera,
+        &std_devs,
+        rms_px,
+        outlier_corners,
+        used_corners,
+        refined.summary.termination,
+    );
     Ok(IntrinsicCalibration {
         model,
         camera,
         initial_camera,
         initialization,
-        camera_from_board: refined.camera_from_board,
+        camera_from_board,
         residuals,
+        inliers,
         per_image,
         rms_px,
         rms_distance_px,
+        outlier_px: robust.outlier_px,
+        outlier_corners,
+        warnings,
         initial_rms_px,
         std_devs,
-        covariance: refined.covariance,
+        covariance,
         noise_sigma_px: refined.noise_variance.sqrt(),
         normal_spread_deg: spread,
         iterations: refined.summary.iterations,
@@ -326,33 +560,80 @@ pub fn calibrate_intrinsics(
     })
 }
 
+/// The report entry of an image from its residuals and inlier flags.
+fn image_error(
+    image: &ImageCorners,
+    status: ImageStatus,
+    residuals: &[Vector2<f64>],
+    inliers: &[bool],
+) -> ImageError {
+    let kept: Vec<&Vector2<f64>> = residuals
+        .iter()
+        .zip(inliers)
+        .filter(|(_, i)| **i)
+        .map(|(r, _)| r)
+        .collect();
+    let (rms_px, max_px) = if status == ImageStatus::Used && !kept.is_empty() {
+        let n = kept.len() as f64;
+        (
+            (kept.iter().map(|e| e.norm_squared()).sum::<f64>() / (2.0 * n)).sqrt(),
+            kept.iter().map(|e| e.norm()).fold(0.0, f64::max),
+        )
+    } else {
+        (f64::NAN, f64::NAN)
+    };
+    ImageError {
+        name: image.name.clone(),
+        corners: image.corners.len(),
+        status,
+        outliers: inliers.iter().filter(|&&i| !i).count(),
+        rms_px,
+        max_px,
+        residuals: image
+            .corners
+            .iter()
+            .zip(residuals)
+            .zip(inliers)
+            .map(|((c, r), &inlier)| CornerResidual {
+                row: c.row,
+                col: c.col,
+                du: r.x,
+                dv: r.y,
+                outlier: !inlier,
+            })
+            .collect(),
+    }
+}
+
 /// Type of the per-image residual lists.
 type Residuals = Vec<Vec<Vector2<f64>>>;
 
-/// (RMS per coordinate, RMS length, residuals) of a camera and poses.
+/// (RMS per coordinate, RMS length, residuals) of a camera and poses, the statistics over the
+/// corners flagged in `inliers` (all when `None`); a corner that does not project has an
+/// infinite residual.
 fn residual_stats(
     camera: &Camera,
     poses: &[Isometry3<f64>],
     data: &[ImageCorrespondences],
-) -> Result<(f64, f64, Residuals), IntrinsicsError> {
+    inliers: Option<&[Vec<bool>]>,
+) -> (f64, f64, Residuals) {
     let mut sum = 0.0;
     let mut n = 0usize;
     let mut all = Vec::with_capacity(data.len());
     for (i, ((points, pixels), pose)) in data.iter().zip(poses).enumerate() {
         let mut image = Vec::with_capacity(points.len());
-        for (x, obs) in points.iter().zip(pixels) {
-            let p = camera.project(&(pose * x).coords).map_err(|e| {
-                IntrinsicsError::Refinement(format!(
-                    "a corner of image {i} does not project with the estimated camera: {e}"
-                ))
-            })?;
-            let r = p - obs;
-            sum += r.norm_squared();
-            n += 1;
+        for (k, (x, obs)) in points.iter().zip(pixels).enumerate() {
+            let r = camera
+                .project(&(pose * x).coords)
+                .map_or(Vector2::repeat(f64::INFINITY), |p| p - obs);
+            if inliers.is_none_or(|f| f.get(i).and_then(|f| f.get(k)).copied().unwrap_or(false)) {
+                sum += r.norm_squared();
+                n += 1;
+            }
             image.push(r);
         }
         all.push(image);
     }
     let n = n.max(1) as f64;
-    Ok(((sum / (2.0 * n)).sqrt(), (sum / n).sqrt(), all))
+    ((sum / (2.0 * n)).sqrt(), (sum / n).sqrt(), all)
 }

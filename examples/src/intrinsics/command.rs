@@ -51,6 +51,8 @@ pub struct IntrinsicsJob {
     pub out: PathBuf,
     /// Print the JSON report instead of the text summary.
     pub json: bool,
+    /// Print nothing (but the JSON report when `json` is set).
+    pub quiet: bool,
     /// The camera's name in the output files (`<name>_camera_calib.yaml`, camchain).
     pub camera_name: String,
     /// The calibration's options.
@@ -66,6 +68,7 @@ impl IntrinsicsJob {
             board: None,
             out: out.into(),
             json: false,
+            quiet: false,
             camera_name: "cam0".to_owned(),
             options: IntrinsicsOptions::default(),
         }
@@ -80,6 +83,12 @@ impl IntrinsicsJob {
     /// The same job printing JSON (`true`) or text.
     pub fn with_json(mut self, json: bool) -> Self {
         self.json = json;
+        self
+    }
+
+    /// The same job printing nothing but the JSON report (if asked for).
+    pub fn with_quiet(mut self, quiet: bool) -> Self {
+        self.quiet = quiet;
         self
     }
 }
@@ -184,6 +193,8 @@ pub fn run_job(
     )?;
     let text = if job.json {
         report.to_json_string()
+    } else if job.quiet {
+        String::new()
     } else {
         let mut t = report.to_text();
         t.push_str("wrote");

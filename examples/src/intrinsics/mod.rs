@@ -99,6 +99,7 @@ pub mod output;
 pub mod pinhole_init;
 mod refine;
 pub mod report;
+pub mod robust;
 pub mod simulate;
 pub mod svg;
 mod target;
@@ -106,9 +107,10 @@ pub mod vanishing_points;
 pub mod zhang;
 
 pub use calibrate::{
-    ImageError, Initialization, IntrinsicCalibration, IntrinsicModel, IntrinsicsOptions,
-    MIN_CORNERS_PER_IMAGE, MIN_IMAGES, MIN_NORMAL_SPREAD_DEG, calibrate_intrinsics,
-    normal_spread_deg,
+    CornerResidual, ImageError, ImageStatus, Initialization, IntrinsicCalibration, IntrinsicModel,
+    IntrinsicsOptions, IntrinsicsStatus, IntrinsicsWarning, MAX_CENTER_RELATIVE_STD,
+    MAX_FOCAL_RELATIVE_STD, MAX_OUTLIER_SHARE, MAX_RMS_PX, MIN_CORNERS_PER_IMAGE, MIN_IMAGES,
+    MIN_NORMAL_SPREAD_DEG, calibrate_intrinsics, normal_spread_deg,
 };
 pub use corners::{CORNER_FORMAT, CORNER_FORMAT_VERSION, Corner, CornerSet, ImageCorners};
 pub use error::IntrinsicsError;

@@ -61,13 +61,17 @@ pub(crate) fn corner_terms(
     })
 }
 
-/// The reprojection residuals of one image: blocks `[intrinsics (8), camera_from_board (7)]`.
+/// The reprojection residuals of one image: blocks `[intrinsics (8), camera_from_board (7)]`,
+/// each corner's residual scaled by the square root of its weight (iteratively reweighted
+/// least squares; weight 1 is the plain reprojection error).
 pub(crate) struct ImageReprojection {
     pub model: IntrinsicModel,
     pub width: u32,
     pub height: u32,
     pub points: Vec<Point3<f64>>,
     pub observed: Vec<Vector2<f64>>,
+    /// `sqrt(weight)` of each corner.
+    pub sqrt_weights: Vec<f64>,
 }
 
 const BLOCK_SIZES: [usize; 2] = [8, 7];
@@ -99,16 +103,21 @@ impl CostFunction for ImageReprojection {
                 let Ok(pixel) = camera.project(&(pose * x).coords) else {
                     return false;
                 };
-                residuals[2 * k] = pixel.x - obs.x;
-                residuals[2 * k + 1] = pixel.y - obs.y;
+                let w = self.sqrt_weights[k];
+                residuals[2 * k] = w * (pixel.x - obs.x);
+                residuals[2 * k + 1] = w * (pixel.y - obs.y);
             }
             return true;
         };
         let mut terms = Vec::with_capacity(self.points.len());
         for (k, (x, obs)) in self.points.iter().zip(&self.observed).enumerate() {
-            let Some(t) = corner_terms(&camera, &pose, x, obs) else {
+            let Some(mut t) = corner_terms(&camera, &pose, x, obs) else {
                 return false;
             };
+            let w = self.sqrt_weights[k];
+            t.residual *= w;
+            t.d_intrinsics *= w;
+            t.d_pose *= w;
             residuals[2 * k] = t.residual.x;
             residuals[2 * k + 1] = t.residual.y;
             terms.push(t);
@@ -142,15 +151,19 @@ pub(crate) struct Refined {
     pub params: [f64; 8],
     pub camera_from_board: Vec<Isometry3<f64>>,
     pub summary: Summary,
-    /// Covariance of the intrinsics (8 x 8, parameter order), scaled by `noise_variance`.
-    pub covariance: SMatrix<f64, 8, 8>,
+    /// Covariance of the intrinsics (8 x 8, parameter order), scaled by `noise_variance`;
+    /// `None` for a weighted pass or when the information matrix is singular (an intrinsic
+    /// the views do not determine).
+    pub covariance: Option<SMatrix<f64, 8, 8>>,
     /// `sum r^2 / (m - n)`, pixels squared.
     pub noise_variance: f64,
 }
 
 /// Refines the intrinsics and all board poses together from an initial guess.
 ///
-/// `data[i]` holds image `i`'s board points and observed pixels.
+/// `data[i]` holds image `i`'s board points and observed pixels, `weights[i]` (when given)
+/// the weight of each of its corners; the covariance is that of the weighted problem, so it
+/// is meaningful for weights 1 (the final solve on the inliers).
 pub(crate) fn refine(
     model: IntrinsicModel,
     width: u32,
@@ -158,14 +171,19 @@ pub(crate) fn refine(
     initial: &[f64; 8],
     initial_poses: &[Isometry3<f64>],
     data: &[ImageCorrespondences],
+    weights: Option<&[Vec<f64>]>,
     options: &SolverOptions,
 ) -> Result<Refined, IntrinsicsError> {
     let mut problem = Problem::new();
     let intrinsics = problem.add_parameter_block(initial)?;
     let mut poses = Vec::with_capacity(initial_poses.len());
-    for ((points, pixels), pose) in data.iter().zip(initial_poses) {
+    for (i, ((points, pixels), pose)) in data.iter().zip(initial_poses).enumerate() {
         let block = problem.add_manifold_block(&se3_to_params(pose), Se3Manifold)?;
         problem.set_eliminated(block, true)?;
+        let sqrt_weights = match weights.and_then(|w| w.get(i)) {
+            Some(w) => w.iter().map(|w| w.max(0.0).sqrt()).collect(),
+            None => vec![1.0; points.len()],
+        };
         problem.add_residual_block(
             ImageReprojection {
                 model,
@@ -173,6 +191,7 @@ pub(crate) fn refine(
                 height,
                 points: points.clone(),
                 observed: pixels.clone(),
+                sqrt_weights,
             },
             Loss::Trivial,
             &[intrinsics, block],
@@ -205,23 +224,20 @@ pub(crate) fn refine(
         )));
     }
     let noise_variance = 2.0 * summary.final_cost / (m - n) as f64;
-    let unit = problem
-        .covariance(&[intrinsics], options)
-        .map_err(|e| match e {
-            BundleAdjustError::SingularInformation => IntrinsicsError::SingularInformation(
-                "some intrinsic parameter is not observable from these views".into(),
-            ),
-            other => IntrinsicsError::Solver(other),
-        })?;
-    let matrix = unit.matrix();
-    if matrix.nrows() != 8 || matrix.ncols() != 8 {
-        return Err(IntrinsicsError::SingularInformation(format!(
-            "the solver returned a {}x{} covariance for the 8 intrinsics",
-            matrix.nrows(),
-            matrix.ncols()
-        )));
-    }
-    let covariance = SMatrix::<f64, 8, 8>::from_fn(|r, c| matrix[(r, c)] * noise_variance);
+    // The covariance of a weighted pass would be that of the weighted problem: not computed.
+    let covariance = if weights.is_some() {
+        None
+    } else {
+        match problem.covariance(&[intrinsics], options) {
+            Ok(unit) => {
+                let matrix = unit.matrix();
+                (matrix.nrows() == 8 && matrix.ncols() == 8)
+                    .then(|| SMatrix::<f64, 8, 8>::from_fn(|r, c| matrix[(r, c)] * noise_variance))
+            }
+            Err(BundleAdjustError::SingularInformation) => None,
+            Err(other) => return Err(IntrinsicsError::Solver(other)),
+        }
+    };
     Ok(Refined {
         params,
         camera_from_board,

@@ -5,7 +5,10 @@ use std::fmt::Write as _;
 use ibc_camera_models::{Camera, CameraModel};
 use serde::Serialize;
 
-use super::calibrate::{ImageError, Initialization, IntrinsicCalibration};
+use super::calibrate::{
+    ImageError, ImageStatus, Initialization, IntrinsicCalibration, IntrinsicsStatus,
+    IntrinsicsWarning,
+};
 use super::kb_init::FocalHypothesis;
 use super::target::PlanarTarget;
 
@@ -61,6 +64,16 @@ pub enum InitializationReport {
     },
 }
 
+/// A failed quality gate as reported: its fields and its message.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct WarningEntry {
+    /// The warning (its kind and figures).
+    #[serde(flatten)]
+    pub warning: IntrinsicsWarning,
+    /// What it means, in words.
+    pub message: String,
+}
+
 /// The JSON report of an intrinsic calibration.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct IntrinsicsReport {
@@ -84,8 +97,16 @@ pub struct IntrinsicsReport {
     pub initial_rms_px: f64,
     /// Pixel noise estimated from the residuals, pixels.
     pub noise_sigma_px: f64,
-    /// Per-image errors.
+    /// Per-image errors, with every corner's residual.
     pub images: Vec<ImageError>,
+    /// The residual length above which a corner was excluded as an outlier, pixels.
+    pub outlier_px: f64,
+    /// Corners excluded as outliers.
+    pub outlier_corners: usize,
+    /// `"ok"`, or `"poor"` when a quality gate failed (see `warnings`).
+    pub status: IntrinsicsStatus,
+    /// The failed quality gates, each with its message.
+    pub warnings: Vec<WarningEntry>,
     /// Largest angle between two board normals, degrees.
     pub normal_spread_deg: f64,
     /// The initialization.
@@ -151,6 +172,17 @@ impl IntrinsicsReport {
             initial_rms_px: calibration.initial_rms_px,
             noise_sigma_px: calibration.noise_sigma_px,
             images: calibration.per_image.clone(),
+            outlier_px: calibration.outlier_px,
+            outlier_corners: calibration.outlier_corners,
+            status: calibration.status(),
+            warnings: calibration
+                .warnings
+                .iter()
+                .map(|w| WarningEntry {
+                    warning: w.clone(),
+                    message: w.to_string(),
+                })
+                .collect(),
             normal_spread_deg: calibration.normal_spread_deg,
             initialization,
             iterations: calibration.iterations,
@@ -169,9 +201,14 @@ impl IntrinsicsReport {
     /// truth), RMS, the initialization, and the worst images.
     pub fn to_text(&self) -> String {
         let mut s = String::new();
+        let used = self
+            .images
+            .iter()
+            .filter(|i| i.status == ImageStatus::Used)
+            .count();
         let _ = writeln!(
             s,
-            "{} camera, {}x{} px, board {}x{} corners of {} m, {} images",
+            "{} camera, {}x{} px, board {}x{} corners of {} m, {used} of {} images used",
             self.model,
             self.image_width,
             self.image_height,
@@ -180,6 +217,27 @@ impl IntrinsicsReport {
             self.board.square,
             self.images.len()
         );
+        for i in &self.images {
+            match i.status {
+                ImageStatus::Used => {}
+                ImageStatus::TooFewCorners => {
+                    let _ = writeln!(
+                        s,
+                        "  skipped `{}`: {} corners, fewer than {}",
+                        i.name,
+                        i.corners,
+                        super::MIN_CORNERS_PER_IMAGE
+                    );
+                }
+                ImageStatus::Outliers => {
+                    let _ = writeln!(
+                        s,
+                        "  excluded `{}`: {} of its {} corners do not fit the other images",
+                        i.name, i.outliers, i.corners
+                    );
+                }
+            }
+        }
         match &self.initialization {
             InitializationReport::VanishingPoints {
                 focal_px,
@@ -230,7 +288,18 @@ impl IntrinsicsReport {
             self.termination,
             self.normal_spread_deg
         );
-        let mut worst: Vec<&ImageError> = self.images.iter().collect();
+        if self.outlier_corners > 0 {
+            let _ = writeln!(
+                s,
+                "{} corners excluded as outliers (residual above {:.2} px)",
+                self.outlier_corners, self.outlier_px
+            );
+        }
+        let mut worst: Vec<&ImageError> = self
+            .images
+            .iter()
+            .filter(|i| i.status == ImageStatus::Used)
+            .collect();
         worst.sort_by(|a, b| b.rms_px.total_cmp(&a.rms_px));
         let _ = writeln!(s, "worst images (RMS / max px):");
         for e in worst.iter().take(3) {
@@ -241,6 +310,17 @@ impl IntrinsicsReport {
             );
         }
         let _ = writeln!(s, "time {:.3} s", self.seconds);
+        let _ = writeln!(
+            s,
+            "status: {}",
+            match self.status {
+                IntrinsicsStatus::Ok => "ok",
+                IntrinsicsStatus::Poor => "poor",
+            }
+        );
+        for w in &self.warnings {
+            let _ = writeln!(s, "warning: {}", w.message);
+        }
         s
     }
 }

@@ -273,7 +273,10 @@ impl Scenario {
     /// [`SimError::UnknownScenario`] when it is neither; the file's errors otherwise.
     pub fn resolve(name_or_path: &str) -> Result<Self, SimError> {
         let path = Path::new(name_or_path);
-        if path.is_file() {
+        let builtin = BUILTINS.iter().any(|b| b.name == name_or_path);
+        if path.is_file() || (path.exists() && !builtin) {
+            // A path that exists but is no regular file (a FIFO, a device) is refused by the
+            // reader, naming it.
             Self::from_yaml_file(path)
         } else {
             Self::builtin(name_or_path)

@@ -1,8 +1,10 @@
 //! Shared helpers of the `cli_*` integration tests: running the `ibc` binary.
 #![allow(dead_code, clippy::unwrap_used, clippy::expect_used)]
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
+
+use ibc_pipeline::sim::{Scenario, SimulatedWorld};
 
 /// Runs `ibc` with `args`.
 pub fn ibc(args: &[&str]) -> Output {
@@ -64,5 +66,61 @@ pub fn json_close(a: &serde_json::Value, b: &serde_json::Value, at: &str) -> Res
         }
         _ if a == b => Ok(()),
         _ => Err(format!("{at}: {a} != {b}")),
+    }
+}
+
+/// A small simulated world written to `dir` (map, log, camchain, truth).
+pub fn world(dir: &Path) -> ibc_pipeline::sim::WrittenFiles {
+    let scenario = Scenario::builtin("garage").unwrap().with_scale(0.05);
+    SimulatedWorld::simulate(&scenario)
+        .unwrap()
+        .write(dir)
+        .unwrap()
+}
+
+/// Checks a failed run: exit code 1, nothing on stdout, one line on stderr starting with
+/// `error: ` and containing every one of `expected`.
+pub fn check_failure(o: &Output, expected: &[&str]) {
+    let err = stderr(o);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(
+        o.stdout.is_empty(),
+        "{}",
+        String::from_utf8_lossy(&o.stdout)
+    );
+    assert_eq!(err.lines().count(), 1, "not one line: {err}");
+    assert!(err.starts_with("error: "), "{err}");
+    for e in expected {
+        assert!(err.contains(e), "`{e}` not in: {err}");
+    }
+}
+
+/// A small simulated world in a temporary folder.
+pub struct Files {
+    /// Keeps the folder alive.
+    pub _dir: tempfile::TempDir,
+    /// The map.
+    pub map: PathBuf,
+    /// The rig log.
+    pub log: PathBuf,
+    /// The Kalibr camchain.
+    pub cameras: PathBuf,
+    /// The ground truth.
+    pub truth: PathBuf,
+    /// The folder.
+    pub dir: PathBuf,
+}
+
+/// The garage at scale 0.05 written to a temporary folder.
+pub fn files() -> Files {
+    let dir = tempfile::tempdir().unwrap();
+    let w = world(dir.path());
+    Files {
+        dir: dir.path().to_owned(),
+        _dir: dir,
+        map: w.map,
+        log: w.log,
+        cameras: w.cameras,
+        truth: w.truth,
     }
 }
