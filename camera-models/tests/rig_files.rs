@@ -473,7 +473,7 @@ fn written_files_take_the_umask_modes() {
     let dir = tempfile::tempdir().unwrap();
     let reference = dir.path().join("reference");
     std::fs::write(&reference, b"").unwrap();
-    let mode = |p: &std::path::Path| std::fs::metadata(p).unwrap().permissions().mode() & 0o777;
+    let mode = |p: &Path| std::fs::metadata(p).unwrap().permissions().mode() & 0o777;
     let rig = Rig::from_kalibr_str(
         &std::fs::read_to_string(concat!(
             env!("CARGO_MANIFEST_DIR"),

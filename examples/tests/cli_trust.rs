@@ -235,10 +235,7 @@ fn alias_bomb() -> String {
     let mut s = String::from("a0: &a0 [x, x, x, x, x, x, x, x, x]\n");
     for i in 1..9 {
         let p = format!("*a{}", i - 1);
-        s.push_str(&format!(
-            "a{i}: &a{i} [{}]\n",
-            vec![p.as_str(); 9].join(", ")
-        ));
+        s.push_str(&format!("a{i}: &a{i} [{}]\n", [p.as_str(); 9].join(", ")));
     }
     s
 }
@@ -376,4 +373,40 @@ fn the_hand_eye_method_can_be_chosen() {
     assert!(!error.contains(" rad"), "angles in degrees: {error}");
     let o = ibc(&["demo", "--hand-eye", "sideways"]);
     assert_eq!(o.status.code(), Some(2));
+}
+
+#[test]
+fn a_camchain_imucam_keeps_its_imu_transforms() {
+    let f = files();
+    let mut rig = Rig::read_kalibr(&f.cameras).unwrap();
+    // An IMU 10 cm behind camera 0, axes aligned with it; each camera's T_cam_imu from the
+    // file's extrinsics, and a time shift.
+    let cam0_from_imu = nalgebra::Isometry3::translation(0.0, 0.0, -0.1);
+    let first = rig.cameras[0].rig_from_camera;
+    for c in &mut rig.cameras {
+        c.camera_from_imu = Some(c.rig_from_camera.inverse() * first * cam0_from_imu);
+        c.timeshift_cam_imu_s = Some(0.0025);
+    }
+    let imucam = f.dir.join("camchain-imucam.yaml");
+    std::fs::write(&imucam, rig.to_kalibr_string()).unwrap();
+    let out = f.dir.join("out");
+    let o = calibrate(&f, &imucam, None, &out, &["--json"]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let report: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    let notes = report["notes"].to_string();
+    assert!(
+        notes.contains("T_cam_imu is written for every camera through `front`"),
+        "{notes}"
+    );
+    let calibrated = Rig::read_kalibr(out.join("camchain-calibrated.yaml")).unwrap();
+    for (c, prior) in calibrated.cameras.iter().zip(&rig.cameras) {
+        assert_eq!(c.timeshift_cam_imu_s, Some(0.0025));
+        // The IMU stays where it was relative to camera 0, through the calibrated extrinsics.
+        let imu_in_rig = c.rig_from_camera * c.camera_from_imu.unwrap();
+        let expected = calibrated.cameras[0].rig_from_camera * cam0_from_imu;
+        assert!((imu_in_rig.translation.vector - expected.translation.vector).norm() < 1e-9);
+        // And close to the file's, since nothing moved.
+        let before = prior.camera_from_imu.unwrap().translation.vector;
+        assert!((c.camera_from_imu.unwrap().translation.vector - before).norm() < 0.005);
+    }
 }

@@ -107,7 +107,7 @@ impl<D: Descriptor> Vocabulary<D> {
                 continue;
             }
             if header.is_none() {
-                header = Some(parse_header(line_no, &line)?);
+                header = Some(parse_header(line_no, line)?);
                 continue;
             }
             let id = parent.len();

@@ -195,7 +195,7 @@ impl ResidualPattern {
             .filter(|(_, n)| *n >= PATTERN_MIN_CELL)
             .collect();
         let total: usize = used.iter().map(|(_, n)| n).sum();
-        if used.is_empty() || !(sigma_px > 0.0) {
+        if used.is_empty() || sigma_px.is_nan() || sigma_px <= 0.0 {
             return None;
         }
         let energy: f64 = used

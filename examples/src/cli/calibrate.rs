@@ -19,7 +19,7 @@ use super::{CalibrateArgs, CliError, Outcome, print};
 fn read_cameras(path: &Path) -> Result<Rig, CliError> {
     let error = |source| CliError::Cameras {
         path: path.to_owned(),
-        source,
+        source: Box::new(source),
     };
     if path.is_dir() {
         Rig::read_camodocal_dir(path).map_err(error)

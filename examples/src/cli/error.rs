@@ -37,7 +37,7 @@ pub enum CliError {
         /// The file or folder given.
         path: PathBuf,
         /// The reader's error.
-        source: ibc_camera_models::FileError,
+        source: Box<ibc_camera_models::FileError>,
     },
     /// The vocabulary file could not be read.
     #[error("vocabulary: {source}")]

@@ -62,7 +62,7 @@
 //! | 40 | 1 | odometry kind: 0 none, 1 planar (wheel odometry), 2 6-DoF (pose tracker) |
 //! | 41 | 7 | reserved |
 //! | 48 | 8 | feature count `F` (sum over all images), `u64` |
-//! | 56 | … | `C` camera names, each a `u32` byte length then that many bytes of UTF-8 (non-empty, unique, at most [`MAX_CAMERA_NAME_BYTES`], no line break); they are matched to the camera file's cameras **by order** |
+//! | 56 | … | `C` camera names, each a `u32` byte length then that many bytes of UTF-8 (non-empty, unique, at most [`MAX_CAMERA_NAME_BYTES`], no line break); they are matched to the camera file's cameras **by name** (by order when the file names none: `crate::calib::camera_matching`) |
 //! | … | `72 N` | frame records, in time order: time stamp `f64` (seconds, non-decreasing); odometry flag `u8` (1 when the frame has an odometry pose; always 0 when the kind is none); 7 reserved bytes; `world_from_odometry` pose (56 bytes, zero when the flag is 0) in the odometry's own world frame |
 //! | … | `4 N C` | feature count of every image, `u32`, frame-major (frame 0 camera 0, frame 0 camera 1, …) |
 //! | … | `16 F` | keypoints `u, v`, image after image in the same order |

@@ -350,7 +350,7 @@ fn gates(
     termination: Termination,
 ) -> Vec<IntrinsicsWarning> {
     let mut warnings = Vec::new();
-    if !(rms_px <= MAX_RMS_PX) {
+    if rms_px.is_nan() || rms_px > MAX_RMS_PX {
         warnings.push(IntrinsicsWarning::HighRms {
             rms_px,
             limit_px: MAX_RMS_PX,
@@ -366,7 +366,7 @@ fn gates(
         } else {
             (sizes[k - 2], MAX_CENTER_RELATIVE_STD, "the image size")
         };
-        if !(std_devs[i] <= limit * scale) {
+        if std_devs[i].is_nan() || std_devs[i] > limit * scale {
             warnings.push(IntrinsicsWarning::Undetermined {
                 parameter: names[i].to_owned(),
                 std: std_devs[i],

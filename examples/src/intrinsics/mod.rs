@@ -26,12 +26,22 @@
 //!   [`IntrinsicModel`]'s parser refuses `mei` with a message saying so. Fisheyes are
 //!   calibrated with `kb`.
 //!
-//! Bad input is a typed [`IntrinsicsError`]: too few images ([`MIN_IMAGES`]) or corners
-//! ([`MIN_CORNERS_PER_IMAGE`]), a corner outside the image or off the board, boards that are
-//! all parallel to each other (for instance all parallel to the image:
-//! [`IntrinsicsError::DegenerateViews`], detected by the spread of the board normals,
-//! [`MIN_NORMAL_SPREAD_DEG`], and for the pinhole also by the conditioning of Zhang's
-//! constraints, [`zhang::ZHANG_MIN_CONDITION`]).
+//! - **Outliers** ([`robust`]): an image with fewer than [`MIN_CORNERS_PER_IMAGE`] corners (a
+//!   detector that failed on it) is skipped and named ([`ImageStatus::TooFewCorners`]); when
+//!   some corner does not fit, Cauchy-weighted refinements find the outlier corners, which
+//!   are excluded and flagged in the report (a view left with fewer than half its corners is
+//!   excluded whole, [`ImageStatus::Outliers`]), and the inliers are refined alone.
+//! - **Quality gates** ([`IntrinsicsWarning`]): an RMS above [`MAX_RMS_PX`], a focal length or
+//!   principal point whose standard deviation exceeds [`MAX_FOCAL_RELATIVE_STD`] of its value
+//!   or [`MAX_CENTER_RELATIVE_STD`] of the image size, more than [`MAX_OUTLIER_SHARE`] outlier
+//!   corners, or a refinement that did not converge make the calibration
+//!   [`IntrinsicsStatus::Poor`]; `ibc intrinsics` still writes it and exits with code 3.
+//!
+//! Bad input is a typed [`IntrinsicsError`]: too few usable images ([`MIN_IMAGES`]), a corner
+//! outside the image or off the board, boards that are all parallel to each other (for
+//! instance all parallel to the image: [`IntrinsicsError::DegenerateViews`], detected by the
+//! spread of the board normals, [`MIN_NORMAL_SPREAD_DEG`], and for the pinhole also by the
+//! conditioning of Zhang's constraints, [`zhang::ZHANG_MIN_CONDITION`]).
 //!
 //! # Corner file format (JSON)
 //! Any detector's output (OpenCV's `findChessboardCorners` + `cornerSubPix`, Kalibr's

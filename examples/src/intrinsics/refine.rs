@@ -166,8 +166,7 @@ pub(crate) struct Refined {
 /// is meaningful for weights 1 (the final solve on the inliers).
 pub(crate) fn refine(
     model: IntrinsicModel,
-    width: u32,
-    height: u32,
+    (width, height): (u32, u32),
     initial: &[f64; 8],
     initial_poses: &[Isometry3<f64>],
     data: &[ImageCorrespondences],

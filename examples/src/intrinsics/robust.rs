@@ -111,8 +111,7 @@ pub(crate) fn robust_refine(
     let camera_of = |r: &Refined| model.camera(width, height, &r.params);
     let mut current = refine(
         model,
-        width,
-        height,
+        (width, height),
         initial,
         initial_poses,
         data,
@@ -151,8 +150,7 @@ pub(crate) fn robust_refine(
             .collect();
         current = refine(
             model,
-            width,
-            height,
+            (width, height),
             &current.params,
             &current.camera_from_board,
             data,
@@ -215,8 +213,7 @@ pub(crate) fn robust_refine(
     }
     let mut refined = refine(
         model,
-        width,
-        height,
+        (width, height),
         &current.params,
         &kept_poses,
         &kept_data,

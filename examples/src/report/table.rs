@@ -30,7 +30,7 @@ fn max_std(v: &[Option<f64>; 3]) -> Option<f64> {
 fn quality_rows(s: &mut String, report: &Report) {
     let _ = writeln!(
         s,
-        "{:<12} {:>11} {:>9} {:>9} {:>15} {:>15} {:>8} {:>8}",
+        "{:<12} {:>11} {:>9} {:>9} {:>15} {:>15} {:>9} {:>8}",
         "camera",
         "localized",
         "inliers",
@@ -44,7 +44,7 @@ fn quality_rows(s: &mut String, report: &Report) {
         let r = &c.reprojection_px;
         let _ = writeln!(
             s,
-            "{:<12} {:>11} {:>9} {:>9} {:>15} {:>15} {:>7.1}% {:>8}",
+            "{:<12} {:>11} {:>9} {:>9} {:>15} {:>15} {:>8.1}% {:>8}",
             c.name,
             format!("{}/{}", c.images_localized, report.frames),
             c.inliers,

@@ -21,7 +21,8 @@ pub const DEFAULT_SCENARIO: &str = "garage";
 pub enum CameraFileFormat {
     /// A Kalibr camchain YAML.
     Kalibr,
-    /// A CamOdoCal rig folder (`extrinsic.txt` and `<name>_camera_calib.yaml` per camera).
+    /// A CamOdoCal rig folder (`extrinsic.txt` and `<name>_calib.yaml` or
+    /// `<name>_camera_calib.yaml` per camera).
     CamOdoCal,
 }
 
