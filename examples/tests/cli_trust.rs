@@ -410,3 +410,42 @@ fn a_camchain_imucam_keeps_its_imu_transforms() {
         assert!((c.camera_from_imu.unwrap().translation.vector - before).norm() < 0.005);
     }
 }
+
+#[test]
+fn messages_name_the_file_once() {
+    let f = files();
+    let out = f.dir.join("out");
+    // A vocabulary that is not one: named.
+    let o = calibrate(&f, &f.cameras, None, &out, &["--vocabulary", s(&f.map)]);
+    check_failure(
+        &o,
+        &["vocabulary", "map.ibcmap", "not an ibc vocabulary file"],
+    );
+    // A malformed camera file inside a CamOdoCal folder: that file, once.
+    let rig = Rig::read_kalibr(&f.cameras).unwrap();
+    let folder = f.dir.join("rig");
+    rig.write_camodocal_dir(&folder).unwrap();
+    let yaml = folder.join("cam2_calib.yaml");
+    let text = std::fs::read_to_string(&yaml)
+        .unwrap()
+        .replace("   mu:", "   mu_typo:");
+    std::fs::write(&yaml, text).unwrap();
+    let o = calibrate(&f, &folder, None, &out, &[]);
+    check_failure(&o, &["cam2_calib.yaml", "mu"]);
+    assert_eq!(
+        stderr(&o).matches("cam2_calib.yaml").count(),
+        1,
+        "{}",
+        stderr(&o)
+    );
+    // A missing camera file: its path once.
+    let missing = f.dir.join("nowhere.yaml");
+    let o = calibrate(&f, &missing, None, &out, &[]);
+    check_failure(&o, &["nowhere.yaml"]);
+    assert_eq!(
+        stderr(&o).matches("nowhere.yaml").count(),
+        1,
+        "{}",
+        stderr(&o)
+    );
+}
