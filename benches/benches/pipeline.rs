@@ -6,7 +6,9 @@
 //!   per direct-index node) against matching each of the 10 candidate images in turn with
 //!   `ibc_vocab_tree::match_by_nodes` (DBoW2's way) and by brute force (`match_brute_force`,
 //!   as CamOdoCal does);
-//! - refinement on two threads (the pipeline's fixed count) against one thread.
+//! - refinement on two threads (the pipeline's fixed count) against one thread;
+//! - the quality gates (per-camera residual statistics and pattern) against the refinement
+//!   whose residuals they judge.
 //!
 //! Run with `cargo bench -p ibc-benches --bench pipeline`.
 #![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)]
@@ -15,7 +17,10 @@ use std::hint::black_box;
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use ibc_bundle_adjust::{RigObservation, RigRefinement, RigRefinementOptions};
+use ibc_camera_models::CameraModel;
 use ibc_pipeline::calib::localization::{CameraLocalizer, match_to_map};
+use ibc_pipeline::calib::quality::{RefinementFacts, assess};
+use ibc_pipeline::calib::refinement::reprojection_residual;
 use ibc_pipeline::calib::{
     CalibrationOptions, MapIndex, calibrate, calibrate_hand_eye, initialize, localize_image,
     localize_log, refine, select_frame_sets,
@@ -227,6 +232,54 @@ fn stages(c: &mut Criterion) {
     one_thread.solver.num_threads = 1;
     g.bench_function("refinement, 1 thread (baseline)", |b| {
         b.iter(|| problem.refine(&one_thread).unwrap())
+    });
+    // The quality gates on the refinement's residuals, as the pipeline computes them.
+    let residuals_at = |rig_from_camera: &[nalgebra::Isometry3<f64>],
+                        world_from_rig: &[nalgebra::Isometry3<f64>]| {
+        observations
+            .iter()
+            .map(|o| {
+                let c = o.camera as usize;
+                reprojection_residual(
+                    &cameras[c],
+                    &rig_from_camera[c],
+                    &world_from_rig[o.set as usize],
+                    o,
+                )
+                .unwrap_or(nalgebra::Vector2::repeat(f64::NAN))
+            })
+            .collect::<Vec<_>>()
+    };
+    let initial = residuals_at(&init.rig_from_camera, &init.world_from_rig);
+    let refined = residuals_at(
+        &calibration.refinement.rig_from_camera,
+        &calibration.refinement.world_from_rig,
+    );
+    let prior = calibration.prior_rig_from_camera();
+    let facts = RefinementFacts {
+        names: &calibration.camera_names,
+        image_sizes: cameras.iter().map(|c| (c.width(), c.height())).collect(),
+        localization: calibration
+            .quality
+            .cameras
+            .iter()
+            .map(|q| (q.images, q.images_localized, q.inliers))
+            .collect(),
+        observations: observations
+            .iter()
+            .map(|o| (o.camera as usize, o.pixel))
+            .collect(),
+        initial: &initial,
+        refined: &refined,
+        cauchy_scale_px: options.refinement.cauchy_scale_px,
+        converged: (true, "function_tolerance", 5),
+        covariance: true,
+        prior_rig_from_camera: &prior,
+        rig_from_camera: &calibration.refinement.rig_from_camera,
+    };
+    assert_eq!(assess(&facts).warnings, calibration.quality.warnings);
+    g.bench_function("quality gates (40k correspondences)", |b| {
+        b.iter(|| assess(black_box(&facts)))
     });
     let poses: Vec<_> = calibration
         .rig_trajectory()

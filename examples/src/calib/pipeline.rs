@@ -16,7 +16,7 @@ use super::error::CalibrationError;
 use super::frame_sets::{FrameSet, select_frame_sets};
 use super::hand_eye::{HandEye, HandEyeFailure, HandEyeSolver, calibrate_hand_eye, choose_solver};
 use super::initialization::{Initialization, initialize};
-use super::localization::{Localizations, localize_log};
+use super::localization::{ImageLocalization, LocalizationFailure, Localizations, localize_log};
 use super::map_index::MapIndex;
 use super::options::{CalibrationOptions, evenly_spaced};
 use super::progress::{NoProgress, Progress, Stage};
@@ -320,7 +320,7 @@ fn check_every_camera_localized(
     names: &[String],
 ) -> Result<(), CalibrationError> {
     for (c, name) in names.iter().enumerate() {
-        let results: Vec<&super::localization::ImageLocalization> = localizations
+        let results: Vec<&ImageLocalization> = localizations
             .images
             .iter()
             .filter_map(|f| f.get(c))
@@ -328,22 +328,22 @@ fn check_every_camera_localized(
         if results.iter().any(|r| r.is_ok()) {
             continue;
         }
-        // The most frequent kind of failure, shown by its first instance.
-        let failures: Vec<&super::localization::LocalizationFailure> =
+        // The most frequent kind of failure, shown by an instance.
+        let failures: Vec<&LocalizationFailure> =
             results.iter().filter_map(|r| r.as_ref().err()).collect();
-        let mut best: Option<(&super::localization::LocalizationFailure, usize)> = None;
-        for f in &failures {
-            let n = failures
+        let kind_count = |f: &&LocalizationFailure| {
+            let kind = std::mem::discriminant(*f);
+            failures
                 .iter()
-                .filter(|g| std::mem::discriminant(**g) == std::mem::discriminant(*f))
-                .count();
-            if best.is_none_or(|(_, m)| n > m) {
-                best = Some((f, n));
-            }
-        }
-        let reason = best.map_or_else(String::new, |(f, n)| {
-            format!("{f}, in {n} of {} images", results.len())
-        });
+                .filter(|g| std::mem::discriminant(**g) == kind)
+                .count()
+        };
+        let reason = failures
+            .iter()
+            .max_by_key(kind_count)
+            .map_or_else(String::new, |f| {
+                format!("{f}, in {} of {} images", kind_count(f), results.len())
+            });
         return Err(CalibrationError::CameraNotLocalized {
             camera: name.clone(),
             images: results.len(),

@@ -47,11 +47,10 @@
 //! A calibration with any warning has [`Status::Poor`]: it is still written and reported,
 //! and `ibc` exits with its own code (3) rather than 0.
 
-use nalgebra::Vector2;
+use nalgebra::{Isometry3, Vector2};
 use serde::Serialize;
 
 use crate::calib::accuracy::relative_to_first;
-use nalgebra::Isometry3;
 
 /// Cells per side of the grid over which the residual pattern is measured. Four: 16 cells
 /// keep a few hundred residuals each with 100 frames, and a focal-length or principal-point
