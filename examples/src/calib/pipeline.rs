@@ -331,8 +331,8 @@ fn check_every_camera_localized(
         // The most frequent kind of failure, shown by an instance.
         let failures: Vec<&LocalizationFailure> =
             results.iter().filter_map(|r| r.as_ref().err()).collect();
-        let kind_count = |f: &&LocalizationFailure| {
-            let kind = std::mem::discriminant(*f);
+        let kind_count = |f: &LocalizationFailure| {
+            let kind = std::mem::discriminant(f);
             failures
                 .iter()
                 .filter(|g| std::mem::discriminant(**g) == kind)
@@ -340,7 +340,7 @@ fn check_every_camera_localized(
         };
         let reason = failures
             .iter()
-            .max_by_key(kind_count)
+            .max_by_key(|f| kind_count(f))
             .map_or_else(String::new, |f| {
                 format!("{f}, in {} of {} images", kind_count(f), results.len())
             });
