@@ -20,7 +20,7 @@ use ibc_bundle_adjust::{RigObservation, RigRefinement, RigRefinementOptions};
 use ibc_camera_models::CameraModel;
 use ibc_pipeline::calib::localization::{CameraLocalizer, match_to_map};
 use ibc_pipeline::calib::quality::{RefinementFacts, assess};
-use ibc_pipeline::calib::refinement::reprojection_residual;
+use ibc_pipeline::calib::refinement::reprojection_residuals;
 use ibc_pipeline::calib::{
     CalibrationOptions, MapIndex, calibrate, calibrate_hand_eye, initialize, localize_image,
     localize_log, refine, select_frame_sets,
@@ -234,26 +234,17 @@ fn stages(c: &mut Criterion) {
         b.iter(|| problem.refine(&one_thread).unwrap())
     });
     // The quality gates on the refinement's residuals, as the pipeline computes them.
-    let residuals_at = |rig_from_camera: &[nalgebra::Isometry3<f64>],
-                        world_from_rig: &[nalgebra::Isometry3<f64>]| {
-        observations
-            .iter()
-            .map(|o| {
-                let c = o.camera as usize;
-                reprojection_residual(
-                    &cameras[c],
-                    &rig_from_camera[c],
-                    &world_from_rig[o.set as usize],
-                    o,
-                )
-                .unwrap_or(nalgebra::Vector2::repeat(f64::NAN))
-            })
-            .collect::<Vec<_>>()
-    };
-    let initial = residuals_at(&init.rig_from_camera, &init.world_from_rig);
-    let refined = residuals_at(
+    let initial = reprojection_residuals(
+        &cameras,
+        &init.rig_from_camera,
+        &init.world_from_rig,
+        &observations,
+    );
+    let refined = reprojection_residuals(
+        &cameras,
         &calibration.refinement.rig_from_camera,
         &calibration.refinement.world_from_rig,
+        &observations,
     );
     let prior = calibration.prior_rig_from_camera();
     let facts = RefinementFacts {

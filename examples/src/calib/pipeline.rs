@@ -22,7 +22,7 @@ use super::options::{CalibrationOptions, evenly_spaced};
 use super::progress::{NoProgress, Progress, Stage};
 use super::quality::{Quality, RefinementFacts, assess};
 use super::refinement::{
-    Refinement, RigObservation, refine, reprojection_error, reprojection_residual,
+    Refinement, RigObservation, refine, reprojection_error, reprojection_residuals,
 };
 use crate::data::{GroundTruth, Map, OdometryKind, RigLog};
 
@@ -284,30 +284,6 @@ fn observations<D>(
     out
 }
 
-/// The reprojection residual of every observation under the given estimate (NaN where the
-/// point does not project).
-fn residuals(
-    cameras: &[Camera],
-    rig_from_camera: &[Isometry3<f64>],
-    world_from_rig: &[Isometry3<f64>],
-    observations: &[RigObservation],
-) -> Vec<Vector2<f64>> {
-    use rayon::prelude::*;
-    observations
-        .par_iter()
-        .map(|o| {
-            let c = o.camera as usize;
-            reprojection_residual(
-                &cameras[c],
-                &rig_from_camera[c],
-                &world_from_rig[o.set as usize],
-                o,
-            )
-            .unwrap_or(Vector2::repeat(f64::NAN))
-        })
-        .collect()
-}
-
 /// The lengths of residuals (NaN stays NaN).
 fn lengths(residuals: &[Vector2<f64>]) -> Vec<f64> {
     residuals.iter().map(Vector2::norm).collect()
@@ -471,13 +447,13 @@ pub fn calibrate_with<D: Descriptor>(
         &observations,
         &options.refinement,
     )?;
-    let initial_residuals = residuals(
+    let initial_residuals = reprojection_residuals(
         &cameras,
         &initialization.rig_from_camera,
         &initialization.world_from_rig,
         &observations,
     );
-    let final_residuals = residuals(
+    let final_residuals = reprojection_residuals(
         &cameras,
         &refinement.rig_from_camera,
         &refinement.world_from_rig,

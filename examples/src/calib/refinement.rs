@@ -96,6 +96,30 @@ pub fn reprojection_residual(
         .map(|pixel| pixel - observation.pixel)
 }
 
+/// The reprojection residual of every observation under the given estimate, in parallel (NaN
+/// where the point does not project).
+pub fn reprojection_residuals(
+    cameras: &[Camera],
+    rig_from_camera: &[Isometry3<f64>],
+    world_from_rig: &[Isometry3<f64>],
+    observations: &[RigObservation],
+) -> Vec<Vector2<f64>> {
+    use rayon::prelude::*;
+    observations
+        .par_iter()
+        .map(|o| {
+            let c = o.camera as usize;
+            reprojection_residual(
+                &cameras[c],
+                &rig_from_camera[c],
+                &world_from_rig[o.set as usize],
+                o,
+            )
+            .unwrap_or(Vector2::repeat(f64::NAN))
+        })
+        .collect()
+}
+
 /// The reprojection error (pixels) of an observation under the given poses, `None` where the
 /// point cannot be projected.
 pub fn reprojection_error(
