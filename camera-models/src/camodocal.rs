@@ -38,15 +38,14 @@
 //! Reading is bounded (regular files of at most [`MAX_FILE_BYTES`](crate::MAX_FILE_BYTES), no
 //! YAML aliases), and a camera read from a file must be plausible
 //! ([`Camera::check_plausible`]). Errors of the readers that take a path name the file
-//! ([`FileError::InFile`]).
+//! ([`CameraFileError::InFile`]).
 
 use std::path::Path;
 
 use nalgebra::{Isometry3, Matrix3, Vector3};
 
 use crate::camera::Camera;
-use crate::error::{FileError, ParameterError};
-use crate::input;
+use crate::error::{CameraFileError, ParameterError};
 use crate::model::CameraModel;
 use crate::yaml::{self, fmt_f64, fmt_str};
 use crate::{KannalaBrandt, PinholeRadtan, Unified};
@@ -76,8 +75,8 @@ pub struct NamedCamera {
     pub camera: Camera,
 }
 
-fn params_error(name: &str) -> impl FnOnce(ParameterError) -> FileError + '_ {
-    move |source| FileError::Parameters {
+fn params_error(name: &str) -> impl FnOnce(ParameterError) -> CameraFileError + '_ {
+    move |source| CameraFileError::Parameters {
         camera: name.to_owned(),
         source,
     }
@@ -86,10 +85,10 @@ fn params_error(name: &str) -> impl FnOnce(ParameterError) -> FileError + '_ {
 /// Parse a CamOdoCal camera YAML and check that the camera is plausible.
 ///
 /// # Errors
-/// [`FileError`] for malformed YAML (or YAML with aliases), a missing or mistyped key, an
+/// [`CameraFileError`] for malformed YAML (or YAML with aliases), a missing or mistyped key, an
 /// unknown model, parameters that are not a valid camera
-/// ([`FileError::Parameters`]) or not a plausible one ([`FileError::Implausible`]).
-pub fn parse_camera(text: &str) -> Result<NamedCamera, FileError> {
+/// ([`CameraFileError::Parameters`]) or not a plausible one ([`CameraFileError::Implausible`]).
+pub fn parse_camera(text: &str) -> Result<NamedCamera, CameraFileError> {
     let doc = yaml::parse(text)?;
     let model = yaml::string(yaml::get(&doc, "", "model_type")?, "model_type")?;
     let name = yaml::string(yaml::get(&doc, "", "camera_name")?, "camera_name")?;
@@ -138,16 +137,16 @@ pub fn parse_camera(text: &str) -> Result<NamedCamera, FileError> {
                 .into()
         }
         "SCARAMUZZA" | "PINHOLE_FULL" => {
-            return Err(FileError::UnsupportedModel {
+            return Err(CameraFileError::UnsupportedModel {
                 name: model,
                 supported: "KANNALA_BRANDT, MEI, PINHOLE",
             });
         }
-        _ => return Err(FileError::UnknownModel { name: model }),
+        _ => return Err(CameraFileError::UnknownModel { name: model }),
     };
     camera
         .check_plausible()
-        .map_err(|source| FileError::Implausible {
+        .map_err(|source| CameraFileError::Implausible {
             camera: name.clone(),
             source,
         })?;
@@ -159,7 +158,7 @@ fn numbers_in<const N: usize>(
     node: &yaml_rust2::Yaml,
     path: &str,
     keys: [&str; N],
-) -> Result<[f64; N], FileError> {
+) -> Result<[f64; N], CameraFileError> {
     let mut out = [0.0; N];
     for (o, key) in out.iter_mut().zip(keys) {
         *o = yaml::number_at(node, path, key)?;
@@ -168,7 +167,7 @@ fn numbers_in<const N: usize>(
 }
 
 /// `distortion_parameters: k1, k2, p1, p2`.
-fn radtan_block(doc: &yaml_rust2::Yaml) -> Result<[f64; 4], FileError> {
+fn radtan_block(doc: &yaml_rust2::Yaml) -> Result<[f64; 4], CameraFileError> {
     let node = yaml::get(doc, "", "distortion_parameters")?;
     numbers_in(node, "distortion_parameters", ["k1", "k2", "p1", "p2"])
 }
@@ -245,27 +244,31 @@ pub fn format_camera(name: &str, camera: &Camera) -> String {
 /// [`MAX_FILE_BYTES`](crate::MAX_FILE_BYTES)).
 ///
 /// # Errors
-/// [`FileError::Io`], [`FileError::NotRegularFile`] or [`FileError::TooLarge`], or an error of
-/// [`parse_camera`] wrapped in [`FileError::InFile`] with the path.
-pub fn read_camera(path: impl AsRef<Path>) -> Result<NamedCamera, FileError> {
+/// [`CameraFileError::Io`], [`CameraFileError::NotRegularFile`] or [`CameraFileError::TooLarge`], or an error of
+/// [`parse_camera`] wrapped in [`CameraFileError::InFile`] with the path.
+pub fn read_camera(path: impl AsRef<Path>) -> Result<NamedCamera, CameraFileError> {
     let path = path.as_ref();
-    parse_camera(&input::read_text(path)?).map_err(|e| e.in_file(path))
+    parse_camera(&yaml::read_text(path)?).map_err(|e| e.in_file(path))
 }
 
 /// Write a CamOdoCal camera YAML file atomically.
 ///
 /// # Errors
-/// [`FileError::Io`].
-pub fn write_camera(path: impl AsRef<Path>, name: &str, camera: &Camera) -> Result<(), FileError> {
+/// [`CameraFileError::Io`].
+pub fn write_camera(
+    path: impl AsRef<Path>,
+    name: &str,
+    camera: &Camera,
+) -> Result<(), CameraFileError> {
     yaml::write_atomic(path.as_ref(), &format_camera(name, camera))
 }
 
 /// Parse `extrinsic.txt`: `(camera name, rig_from_camera)` in file order.
 ///
 /// # Errors
-/// [`FileError::Malformed`] (with the line) for a row that is not four finite numbers, a
+/// [`CameraFileError::Malformed`] (with the line) for a row that is not four finite numbers, a
 /// truncated entry, or a rotation that is not a rotation (|R^T R - I| > 1e-6 or det < 0).
-pub fn parse_extrinsics(text: &str) -> Result<Vec<(String, Isometry3<f64>)>, FileError> {
+pub fn parse_extrinsics(text: &str) -> Result<Vec<(String, Isometry3<f64>)>, CameraFileError> {
     let mut out = Vec::new();
     let mut lines = text
         .lines()
@@ -276,14 +279,14 @@ pub fn parse_extrinsics(text: &str) -> Result<Vec<(String, Isometry3<f64>)>, Fil
         let mut m = [[0.0; 4]; 3];
         for row in &mut m {
             let Some((line, text)) = lines.next() else {
-                return Err(FileError::Malformed {
+                return Err(CameraFileError::Malformed {
                     line: name_line,
                     message: format!("camera `{name}`: expected three rows of four numbers"),
                 });
             };
             let values: Vec<&str> = text.split_whitespace().collect();
             if values.len() != 4 {
-                return Err(FileError::Malformed {
+                return Err(CameraFileError::Malformed {
                     line,
                     message: format!("expected four numbers, found {} fields", values.len()),
                 });
@@ -293,13 +296,13 @@ pub fn parse_extrinsics(text: &str) -> Result<Vec<(String, Isometry3<f64>)>, Fil
                     .parse::<f64>()
                     .ok()
                     .filter(|x| x.is_finite())
-                    .ok_or_else(|| FileError::Malformed {
+                    .ok_or_else(|| CameraFileError::Malformed {
                         line,
                         message: format!("`{v}` is not a finite number"),
                     })?;
             }
         }
-        let pose = isometry_from_rows(&m).map_err(|message| FileError::Malformed {
+        let pose = isometry_from_rows(&m).map_err(|message| CameraFileError::Malformed {
             line: name_line,
             message: format!("camera `{name}`: {message}"),
         })?;

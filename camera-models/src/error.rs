@@ -1,16 +1,18 @@
 //! The crate's error type and the reasons it carries.
 //!
-//! [`Error`] is the one error enum of the crate. The model operations return the narrower
+//! [`CameraError`] is the one error enum of the crate ([`Result`](crate::Result) defaults to
+//! it). The model operations return the narrower
 //! reason enums directly ([`ProjectionError`], [`UnprojectionError`], [`ParameterError`],
 //! [`PlausibilityError`]) so a hot loop can match on them without boxing; every one converts
-//! into [`Error`] with `?`.
+//! into [`CameraError`] with `?`.
 //!
-//! A [`FileError`] from a reader that takes a path names that file exactly once: errors that
-//! carry their own path ([`FileError::Io`], [`FileError::NotRegularFile`],
-//! [`FileError::TooLarge`], [`FileError::ConflictingCameraFiles`]) are returned as they are,
-//! every other one is wrapped in [`FileError::InFile`].
+//! A [`CameraFileError`] from a reader that takes a path names that file exactly once: errors that
+//! carry their own path ([`CameraFileError::Io`], [`CameraFileError::ConflictingCameraFiles`]) are returned as they are,
+//! every other one is wrapped in [`CameraFileError::InFile`].
 
 use std::path::{Path, PathBuf};
+
+use crate::io::IoError;
 
 /// Why a 3D point has no pixel.
 #[derive(Clone, Copy, Debug, PartialEq, thiserror::Error)]
@@ -426,43 +428,18 @@ impl PlausibilityError {
 /// Why a camera or rig file could not be read or written.
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
-pub enum FileError {
-    /// The operating system refused to read or write the file.
-    #[error("{}: {source}", path.display())]
-    Io {
-        /// The file.
-        path: PathBuf,
-        /// The OS error.
-        source: std::io::Error,
-    },
-    /// The path is not a regular file (a directory, a FIFO, a device such as `/dev/zero`, a
-    /// socket): camera files are read only from regular files, checked before opening, so a
-    /// reader neither blocks on a FIFO nor reads a device without end.
-    #[error("{}: not a regular file", path.display())]
-    NotRegularFile {
-        /// The path.
-        path: PathBuf,
-    },
-    /// The file is larger than [`MAX_FILE_BYTES`](crate::MAX_FILE_BYTES).
-    #[error(
-        "{}: at least {size} bytes, over the {limit}-byte limit for a camera file",
-        path.display()
-    )]
-    TooLarge {
-        /// The file.
-        path: PathBuf,
-        /// Its size (from its metadata, or the bytes read when it grew while being read).
-        size: u64,
-        /// The limit.
-        limit: u64,
-    },
+pub enum CameraFileError {
+    /// The file could not be read or written (not a regular file, too large, not text, or
+    /// the operating system's error); names the file.
+    #[error(transparent)]
+    Io(#[from] IoError),
     /// The file is wrapped around an error that does not name it: `<path>: <source>`.
     #[error("{}: {source}", path.display())]
     InFile {
         /// The file.
         path: PathBuf,
         /// What was wrong in it.
-        source: Box<FileError>,
+        source: Box<CameraFileError>,
     },
     /// The text is not well-formed YAML.
     #[error("not valid YAML: {message}")]
@@ -567,22 +544,22 @@ pub enum FileError {
     },
 }
 
-impl FileError {
+impl CameraFileError {
     /// The file this error names, if it names one (the first of the two for
-    /// [`FileError::ConflictingCameraFiles`]).
+    /// [`CameraFileError::ConflictingCameraFiles`]).
     pub fn path(&self) -> Option<&Path> {
         match self {
-            Self::Io { path, .. }
-            | Self::NotRegularFile { path }
-            | Self::TooLarge { path, .. }
-            | Self::InFile { path, .. }
-            | Self::ConflictingCameraFiles { first: path, .. } => Some(path),
+            Self::Io(e) => Some(e.path()),
+            Self::InFile { path, .. } | Self::ConflictingCameraFiles { first: path, .. } => {
+                Some(path)
+            }
             _ => None,
         }
     }
 
-    /// This error with the file it is about: wrapped in [`FileError::InFile`] unless it already
+    /// This error with the file it is about: wrapped in [`CameraFileError::InFile`] unless it already
     /// names a file (so a path is never printed twice).
+    #[cfg(feature = "files")]
     pub(crate) fn in_file(self, path: &Path) -> Self {
         if self.path().is_some() {
             self
@@ -598,7 +575,7 @@ impl FileError {
 /// The crate's error: any of the reasons above.
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
-pub enum Error {
+pub enum CameraError {
     /// A point could not be projected.
     #[error("projection failed: {0}")]
     Projection(#[from] ProjectionError),
@@ -613,5 +590,5 @@ pub enum Error {
     Plausibility(#[from] PlausibilityError),
     /// A file could not be read or written.
     #[error("file error: {0}")]
-    File(#[from] FileError),
+    File(#[from] CameraFileError),
 }

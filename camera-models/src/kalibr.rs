@@ -26,7 +26,7 @@
 //! written back when present. Other keys are ignored. Every camera must be plausible
 //! ([`Camera::check_plausible`]); the file is read bounded (a regular file of at most
 //! [`MAX_FILE_BYTES`](crate::MAX_FILE_BYTES), no YAML aliases), and
-//! [`Rig::read_kalibr`] names the file in its errors ([`FileError::InFile`]).
+//! [`Rig::read_kalibr`] names the file in its errors ([`CameraFileError::InFile`]).
 //!
 //! Reading chains `T_cn_cnm1` into `rig_from_camera` with cam0 as the rig frame. Writing stores
 //! only relative poses (`camN_from_rig * rig_from_cam(N-1)`), so a rig whose frame is not cam0
@@ -40,8 +40,7 @@ use yaml_rust2::Yaml;
 
 use crate::camera::Camera;
 use crate::camodocal::isometry_from_rows;
-use crate::error::FileError;
-use crate::input;
+use crate::error::CameraFileError;
 use crate::model::CameraModel;
 use crate::rig::{Rig, RigCamera};
 use crate::yaml::{self, fmt_f64, fmt_str};
@@ -53,14 +52,14 @@ impl Rig {
     /// Parse a Kalibr camchain.
     ///
     /// # Errors
-    /// [`FileError`] for malformed YAML (or YAML with aliases), missing or mistyped keys, an
-    /// unsupported model, an invalid ([`FileError::Parameters`]) or implausible
-    /// ([`FileError::Implausible`]) camera, a non-rigid `T_cn_cnm1` or `T_cam_imu`, a
+    /// [`CameraFileError`] for malformed YAML (or YAML with aliases), missing or mistyped keys, an
+    /// unsupported model, an invalid ([`CameraFileError::Parameters`]) or implausible
+    /// ([`CameraFileError::Implausible`]) camera, a non-rigid `T_cn_cnm1` or `T_cam_imu`, a
     /// non-finite `timeshift_cam_imu`, or camera keys that do not run `cam0, cam1, ...`.
-    pub fn from_kalibr_str(text: &str) -> Result<Self, FileError> {
+    pub fn from_kalibr_str(text: &str) -> Result<Self, CameraFileError> {
         let doc = yaml::parse(text)?;
         let Yaml::Hash(h) = &doc else {
-            return Err(FileError::WrongType {
+            return Err(CameraFileError::WrongType {
                 key: "(document)".to_owned(),
                 expected: "a mapping of cam0, cam1, ...",
             });
@@ -70,20 +69,20 @@ impl Rig {
             .filter(|k| k.as_str().is_some_and(|s| s.starts_with("cam")))
             .count();
         if cam_keys == 0 {
-            return Err(FileError::MissingKey {
+            return Err(CameraFileError::MissingKey {
                 key: "cam0".to_owned(),
             });
         }
         let mut cameras: Vec<RigCamera> = Vec::with_capacity(cam_keys);
         for i in 0..cam_keys {
             let key = format!("cam{i}");
-            let node = yaml::get(&doc, "", &key).map_err(|_| FileError::Rig {
+            let node = yaml::get(&doc, "", &key).map_err(|_| CameraFileError::Rig {
                 message: format!("{cam_keys} camera keys but no `{key}`: keys must be cam0..camN"),
             })?;
             let camera = parse_camera(node, &key)?;
             camera
                 .check_plausible()
-                .map_err(|source| FileError::Implausible {
+                .map_err(|source| CameraFileError::Implausible {
                     camera: key.clone(),
                     source,
                 })?;
@@ -105,14 +104,14 @@ impl Rig {
                     .map(|v| {
                         v.as_i64()
                             .and_then(|i| usize::try_from(i).ok())
-                            .ok_or_else(|| FileError::WrongType {
+                            .ok_or_else(|| CameraFileError::WrongType {
                                 key: yaml::join(&key, "cam_overlaps"),
                                 expected: "a list of camera indices",
                             })
                     })
                     .collect::<Result<_, _>>()?,
                 Some(_) => {
-                    return Err(FileError::WrongType {
+                    return Err(CameraFileError::WrongType {
                         key: yaml::join(&key, "cam_overlaps"),
                         expected: "a list of camera indices",
                     });
@@ -124,13 +123,12 @@ impl Rig {
             let timeshift_cam_imu_s = yaml::get_opt(node, "timeshift_cam_imu")
                 .map(|t| {
                     let k = yaml::join(&key, "timeshift_cam_imu");
-                    yaml::number(t, &k)
-                        .ok()
-                        .filter(|s| s.is_finite())
-                        .ok_or(FileError::WrongType {
+                    yaml::number(t, &k).ok().filter(|s| s.is_finite()).ok_or(
+                        CameraFileError::WrongType {
                             key: k,
                             expected: "a finite number of seconds",
-                        })
+                        },
+                    )
                 })
                 .transpose()?;
             cameras.push(RigCamera {
@@ -228,29 +226,29 @@ impl Rig {
     /// [`MAX_FILE_BYTES`](crate::MAX_FILE_BYTES)).
     ///
     /// # Errors
-    /// [`FileError::Io`], [`FileError::NotRegularFile`] or [`FileError::TooLarge`], or an
-    /// error of [`from_kalibr_str`](Self::from_kalibr_str) wrapped in [`FileError::InFile`]
+    /// [`CameraFileError::Io`], [`CameraFileError::NotRegularFile`] or [`CameraFileError::TooLarge`], or an
+    /// error of [`from_kalibr_str`](Self::from_kalibr_str) wrapped in [`CameraFileError::InFile`]
     /// with the path.
-    pub fn read_kalibr(path: impl AsRef<Path>) -> Result<Self, FileError> {
+    pub fn read_kalibr(path: impl AsRef<Path>) -> Result<Self, CameraFileError> {
         let path = path.as_ref();
-        Self::from_kalibr_str(&input::read_text(path)?).map_err(|e| e.in_file(path))
+        Self::from_kalibr_str(&yaml::read_text(path)?).map_err(|e| e.in_file(path))
     }
 
     /// Write a Kalibr camchain file atomically.
     ///
     /// # Errors
-    /// [`FileError::Io`].
-    pub fn write_kalibr(&self, path: impl AsRef<Path>) -> Result<(), FileError> {
+    /// [`CameraFileError::Io`].
+    pub fn write_kalibr(&self, path: impl AsRef<Path>) -> Result<(), CameraFileError> {
         yaml::write_atomic(path.as_ref(), &self.to_kalibr_string())
     }
 }
 
 /// One `camN` block's intrinsics.
-fn parse_camera(node: &Yaml, key: &str) -> Result<Camera, FileError> {
+fn parse_camera(node: &Yaml, key: &str) -> Result<Camera, CameraFileError> {
     let text = |k: &str| yaml::string(yaml::get(node, key, k)?, &yaml::join(key, k));
     let model = text("camera_model")?;
     let dist = text("distortion_model")?;
-    let unsupported = || FileError::UnsupportedModel {
+    let unsupported = || CameraFileError::UnsupportedModel {
         name: format!("{model} + {dist}"),
         supported: SUPPORTED,
     };
@@ -259,7 +257,7 @@ fn parse_camera(node: &Yaml, key: &str) -> Result<Camera, FileError> {
         ("pinhole" | "omni" | "ds" | "eucm" | "fov" | "extended_unified" | "double_sphere", _) => {
             return Err(unsupported());
         }
-        _ => return Err(FileError::UnknownModel { name: model }),
+        _ => return Err(CameraFileError::UnknownModel { name: model }),
     }
     let [width, height]: [f64; 2] = yaml::numbers(
         yaml::get(node, key, "resolution")?,
@@ -271,7 +269,7 @@ fn parse_camera(node: &Yaml, key: &str) -> Result<Camera, FileError> {
             #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)] // checked above
             Ok(v as u32)
         } else {
-            Err(FileError::WrongType {
+            Err(CameraFileError::WrongType {
                 key: yaml::join(key, "resolution"),
                 expected: "a list of 2 positive integers",
             })
@@ -281,14 +279,14 @@ fn parse_camera(node: &Yaml, key: &str) -> Result<Camera, FileError> {
     let intrinsics = yaml::get(node, key, "intrinsics")?;
     let ikey = yaml::join(key, "intrinsics");
     let dkey = yaml::join(key, "distortion_coeffs");
-    let coeffs4 = || -> Result<[f64; 4], FileError> {
+    let coeffs4 = || -> Result<[f64; 4], CameraFileError> {
         yaml::numbers(
             yaml::get(node, key, "distortion_coeffs")?,
             &dkey,
             "a list of 4 numbers",
         )
     };
-    let params_err = |source| FileError::Parameters {
+    let params_err = |source| CameraFileError::Parameters {
         camera: key.to_owned(),
         source,
     };
@@ -333,14 +331,14 @@ fn parse_camera(node: &Yaml, key: &str) -> Result<Camera, FileError> {
         "ds" | "eucm" | "fov" | "extended_unified" | "double_sphere" => {
             return Err(unsupported());
         }
-        _ => return Err(FileError::UnknownModel { name: model }),
+        _ => return Err(CameraFileError::UnknownModel { name: model }),
     };
     Ok(camera)
 }
 
 /// A 4x4 rigid transform given as four rows.
-fn parse_transform(node: &Yaml, key: &str) -> Result<Isometry3<f64>, FileError> {
-    let wrong = || FileError::WrongType {
+fn parse_transform(node: &Yaml, key: &str) -> Result<Isometry3<f64>, CameraFileError> {
+    let wrong = || CameraFileError::WrongType {
         key: key.to_owned(),
         expected: "4 rows of 4 numbers",
     };
@@ -356,12 +354,12 @@ fn parse_transform(node: &Yaml, key: &str) -> Result<Isometry3<f64>, FileError> 
         if i < 3 {
             m[i] = r;
         } else if r != [0.0, 0.0, 0.0, 1.0] {
-            return Err(FileError::Rig {
+            return Err(CameraFileError::Rig {
                 message: format!("`{key}`: the last row must be [0, 0, 0, 1]"),
             });
         }
     }
-    isometry_from_rows(&m).map_err(|message| FileError::Rig {
+    isometry_from_rows(&m).map_err(|message| CameraFileError::Rig {
         message: format!("`{key}`: {message}"),
     })
 }

@@ -1,11 +1,15 @@
 #![doc = include_str!("../README.md")]
 
 mod camera;
+#[cfg(feature = "files")]
 pub mod camodocal;
+#[cfg(feature = "files")]
+mod camodocal_rig;
 mod error;
 #[cfg(feature = "glam")]
 pub mod glam;
-mod input;
+pub mod io;
+#[cfg(feature = "files")]
 mod kalibr;
 mod kannala_brandt;
 mod model;
@@ -19,14 +23,20 @@ mod serde_support;
 mod series;
 mod unified;
 mod validate;
+#[cfg(feature = "files")]
 mod yaml;
 
+/// The `nalgebra` this crate's API is written with (points, poses, Jacobians), so callers
+/// need not match its version by hand.
+pub use nalgebra;
+
 pub use camera::Camera;
+#[cfg(feature = "files")]
 pub use camodocal::NamedCamera;
 pub use error::{
-    Error, FileError, ParameterError, PlausibilityError, ProjectionError, UnprojectionError,
+    CameraError, CameraFileError, ParameterError, PlausibilityError, ProjectionError,
+    UnprojectionError,
 };
-pub use input::MAX_FILE_BYTES;
 pub use kannala_brandt::{KannalaBrandt, KbBackprojection, MAX_FAST_ITERATIONS};
 pub use model::{
     CameraModel, MAX_PARAMS, ParamJacobian, ProjectionJacobians, UnprojectionJacobians,
@@ -35,4 +45,8 @@ pub use pinhole_radtan::PinholeRadtan;
 pub use radtan::MAX_UNDISTORT_ITERATIONS;
 pub use rig::{Rig, RigCamera};
 pub use unified::Unified;
-pub use yaml::{MAX_YAML_DEPTH, check_yaml_input};
+#[cfg(feature = "files")]
+pub use yaml::{MAX_FILE_BYTES, MAX_YAML_DEPTH, check_yaml_input};
+
+/// The crate's `Result`, with [`CameraError`] by default.
+pub type Result<T, E = CameraError> = std::result::Result<T, E>;

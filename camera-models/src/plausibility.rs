@@ -6,7 +6,7 @@
 //! A camera read from a file is held to more: the readers
 //! ([`camodocal::parse_camera`](crate::camodocal::parse_camera), the rig readers) refuse one
 //! that fails [`Camera::check_plausible`] with
-//! [`FileError::Implausible`](crate::FileError::Implausible). The checks, in order, each
+//! [`CameraFileError::Implausible`](crate::CameraFileError::Implausible). The checks, in order, each
 //! naming the parameter at fault in its [`PlausibilityError`]:
 //!
 //! 1. Every parameter is finite.

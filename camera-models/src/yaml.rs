@@ -2,20 +2,18 @@
 //! for writers, and atomic file writes.
 //!
 //! Before the DOM is built, the text is run through yaml-rust2's event parser alone, which
-//! holds no document: an alias (`*name`) is refused there ([`FileError::YamlAlias`]), because
+//! holds no document: an alias (`*name`) is refused there ([`CameraFileError::YamlAlias`]), because
 //! the loader copies the aliased node at every use (a 335-byte "billion laughs" file of nine
 //! levels of nine aliases grew to 8 GB in 60 s); so is nesting deeper than [`MAX_YAML_DEPTH`]
-//! ([`FileError::YamlTooDeep`]). Anchors alone are harmless and accepted.
+//! ([`CameraFileError::YamlTooDeep`]). Anchors alone are harmless and accepted.
 
-use std::io::Write;
 use std::path::Path;
-use std::sync::atomic::{AtomicU64, Ordering};
 
 use yaml_rust2::parser::{Event, Parser};
 use yaml_rust2::scanner::ScanError;
 use yaml_rust2::{Yaml, YamlLoader};
 
-use crate::error::FileError;
+use crate::error::CameraFileError;
 
 /// The deepest nesting of sequences and mappings accepted: 32. The deepest real camera file
 /// nests 4 levels (document, `camN`, `T_cn_cnm1`, a row); without a bound, 600 kB of
@@ -26,7 +24,7 @@ pub const MAX_YAML_DEPTH: usize = 32;
 /// Parse the first YAML document of `text`. Leading `%` directive lines are dropped first:
 /// OpenCV (and so CamOdoCal) writes `%YAML:1.0`, which is not a valid YAML 1.2 directive.
 /// Line numbers in errors count the dropped lines, so they are lines of `text`.
-pub fn parse(text: &str) -> Result<Yaml, FileError> {
+pub fn parse(text: &str) -> Result<Yaml, CameraFileError> {
     let mut body = text.trim_start_matches('\u{feff}');
     loop {
         let trimmed = body.trim_start_matches([' ', '\t', '\r', '\n']);
@@ -42,7 +40,7 @@ pub fn parse(text: &str) -> Result<Yaml, FileError> {
     check_events(body, dropped_lines)?;
     let docs = YamlLoader::load_from_str(body).map_err(|e| syntax_error(&e, dropped_lines))?;
     match docs.into_iter().next() {
-        None | Some(Yaml::Null) => Err(FileError::Empty),
+        None | Some(Yaml::Null) => Err(CameraFileError::Empty),
         Some(doc) => Ok(doc),
     }
 }
@@ -55,16 +53,16 @@ pub fn parse(text: &str) -> Result<Yaml, FileError> {
 /// embed rigs, say) should too.
 ///
 /// # Errors
-/// [`FileError::YamlAlias`] or [`FileError::YamlTooDeep`] with the line, or
-/// [`FileError::Yaml`] for a syntax error.
-pub fn check_yaml_input(text: &str) -> Result<(), FileError> {
+/// [`CameraFileError::YamlAlias`] or [`CameraFileError::YamlTooDeep`] with the line, or
+/// [`CameraFileError::Yaml`] for a syntax error.
+pub fn check_yaml_input(text: &str) -> Result<(), CameraFileError> {
     check_events(text, 0)
 }
 
 /// Run the event parser over `body` (which holds no document, so it takes no memory beyond
 /// the current event) and refuse the first alias and any nesting deeper than
 /// [`MAX_YAML_DEPTH`].
-fn check_events(body: &str, dropped_lines: usize) -> Result<(), FileError> {
+fn check_events(body: &str, dropped_lines: usize) -> Result<(), CameraFileError> {
     let mut parser = Parser::new_from_str(body);
     let mut depth = 0usize;
     loop {
@@ -74,11 +72,11 @@ fn check_events(body: &str, dropped_lines: usize) -> Result<(), FileError> {
         let line = mark.line() + dropped_lines;
         match event {
             Event::StreamEnd => return Ok(()),
-            Event::Alias(_) => return Err(FileError::YamlAlias { line }),
+            Event::Alias(_) => return Err(CameraFileError::YamlAlias { line }),
             Event::SequenceStart(..) | Event::MappingStart(..) => {
                 depth += 1;
                 if depth > MAX_YAML_DEPTH {
-                    return Err(FileError::YamlTooDeep {
+                    return Err(CameraFileError::YamlTooDeep {
                         line,
                         limit: MAX_YAML_DEPTH,
                     });
@@ -91,8 +89,8 @@ fn check_events(body: &str, dropped_lines: usize) -> Result<(), FileError> {
 }
 
 /// A syntax error with its line counted in the original text.
-fn syntax_error(e: &ScanError, dropped_lines: usize) -> FileError {
-    FileError::Yaml {
+fn syntax_error(e: &ScanError, dropped_lines: usize) -> CameraFileError {
+    CameraFileError::Yaml {
         message: format!(
             "{} at line {} column {}",
             e.info(),
@@ -112,9 +110,9 @@ pub fn join(parent: &str, key: &str) -> String {
 }
 
 /// The value of `key` in the mapping `node` (whose path is `path`).
-pub fn get<'a>(node: &'a Yaml, path: &str, key: &str) -> Result<&'a Yaml, FileError> {
+pub fn get<'a>(node: &'a Yaml, path: &str, key: &str) -> Result<&'a Yaml, CameraFileError> {
     let Yaml::Hash(h) = node else {
-        return Err(FileError::WrongType {
+        return Err(CameraFileError::WrongType {
             key: if path.is_empty() {
                 "(document)".to_owned()
             } else {
@@ -124,7 +122,7 @@ pub fn get<'a>(node: &'a Yaml, path: &str, key: &str) -> Result<&'a Yaml, FileEr
         });
     };
     h.get(&Yaml::String(key.to_owned()))
-        .ok_or_else(|| FileError::MissingKey {
+        .ok_or_else(|| CameraFileError::MissingKey {
             key: join(path, key),
         })
 }
@@ -138,41 +136,41 @@ pub fn get_opt<'a>(node: &'a Yaml, key: &str) -> Option<&'a Yaml> {
 }
 
 /// A number (YAML real or integer).
-pub fn number(node: &Yaml, key: &str) -> Result<f64, FileError> {
+pub fn number(node: &Yaml, key: &str) -> Result<f64, CameraFileError> {
     match node {
         Yaml::Real(_) => node.as_f64(),
         #[allow(clippy::cast_precision_loss)] // file integers are small sizes and coefficients
         Yaml::Integer(i) => Some(*i as f64),
         _ => None,
     }
-    .ok_or_else(|| FileError::WrongType {
+    .ok_or_else(|| CameraFileError::WrongType {
         key: key.to_owned(),
         expected: "a number",
     })
 }
 
 /// `node[key]` as a number.
-pub fn number_at(node: &Yaml, path: &str, key: &str) -> Result<f64, FileError> {
+pub fn number_at(node: &Yaml, path: &str, key: &str) -> Result<f64, CameraFileError> {
     number(get(node, path, key)?, &join(path, key))
 }
 
 /// A non-negative integer that fits in u32.
-pub fn unsigned(node: &Yaml, key: &str) -> Result<u32, FileError> {
+pub fn unsigned(node: &Yaml, key: &str) -> Result<u32, CameraFileError> {
     node.as_i64()
         .and_then(|i| u32::try_from(i).ok())
-        .ok_or_else(|| FileError::WrongType {
+        .ok_or_else(|| CameraFileError::WrongType {
             key: key.to_owned(),
             expected: "a non-negative integer",
         })
 }
 
 /// A string (a YAML scalar that is a string; numbers are accepted and printed back).
-pub fn string(node: &Yaml, key: &str) -> Result<String, FileError> {
+pub fn string(node: &Yaml, key: &str) -> Result<String, CameraFileError> {
     match node {
         Yaml::String(s) | Yaml::Real(s) => Ok(s.clone()),
         Yaml::Integer(i) => Ok(i.to_string()),
         Yaml::Null => Ok(String::new()),
-        _ => Err(FileError::WrongType {
+        _ => Err(CameraFileError::WrongType {
             key: key.to_owned(),
             expected: "a string",
         }),
@@ -184,8 +182,8 @@ pub fn numbers<const N: usize>(
     node: &Yaml,
     key: &str,
     expected: &'static str,
-) -> Result<[f64; N], FileError> {
-    let wrong = || FileError::WrongType {
+) -> Result<[f64; N], CameraFileError> {
+    let wrong = || CameraFileError::WrongType {
         key: key.to_owned(),
         expected,
     };
@@ -250,41 +248,18 @@ pub fn fmt_str(s: &str) -> String {
     out
 }
 
-/// Distinguishes the temporary files of one process.
-static NEXT_TEMPORARY: AtomicU64 = AtomicU64::new(0);
+/// The largest camera file read, in bytes: 1 MiB. A Kalibr camchain of ten cameras with IMU
+/// fields is about 8 kB and a CamOdoCal camera YAML about 600 bytes, so the limit is more than
+/// a hundred times any real file and still small enough to hold in memory without thought.
+pub const MAX_FILE_BYTES: u64 = 1 << 20;
 
-/// Write `contents` to `path` atomically: a hidden temporary file in the same folder
-/// (`.<name>.tmp-<pid>-<n>`), created with mode `0666` less the umask as any program creates
-/// files (temporary-file libraries use `0600`, which other accounts cannot read), synced, then
-/// renamed over the target; removed again on error.
-pub fn write_atomic(path: &Path, contents: &str) -> Result<(), FileError> {
-    let io = |source| FileError::Io {
-        path: path.to_owned(),
-        source,
-    };
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    };
-    let name = path.file_name().map_or_else(
-        || std::borrow::Cow::Borrowed("file"),
-        |n| n.to_string_lossy(),
-    );
-    let n = NEXT_TEMPORARY.fetch_add(1, Ordering::Relaxed);
-    let tmp = dir.join(format!(".{name}.tmp-{}-{n}", std::process::id()));
-    let written = (|| {
-        let mut file = std::fs::OpenOptions::new()
-            .write(true)
-            .create_new(true)
-            .open(&tmp)?;
-        file.write_all(contents.as_bytes())?;
-        file.sync_all()?;
-        std::fs::rename(&tmp, path)
-    })();
-    if let Err(e) = written {
-        // Best effort: the error returned is the write's.
-        let _ = std::fs::remove_file(&tmp);
-        return Err(io(e));
-    }
-    Ok(())
+/// Read a camera file: a regular file of at most [`MAX_FILE_BYTES`] of UTF-8 text
+/// ([`crate::io::read_text`]).
+pub fn read_text(path: &Path) -> Result<String, CameraFileError> {
+    Ok(crate::io::read_text(path, MAX_FILE_BYTES)?)
+}
+
+/// Write `contents` to `path` atomically ([`crate::io::write_atomically`]).
+pub fn write_atomic(path: &Path, contents: &str) -> Result<(), CameraFileError> {
+    Ok(crate::io::write_atomically(path, contents.as_bytes())?)
 }

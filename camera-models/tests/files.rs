@@ -6,7 +6,7 @@ mod common;
 use ibc_camera_models::camodocal::{
     format_camera, format_extrinsics, parse_camera, parse_extrinsics, read_camera, write_camera,
 };
-use ibc_camera_models::{Camera, CameraModel, FileError, Rig, RigCamera};
+use ibc_camera_models::{Camera, CameraFileError, CameraModel, Rig, RigCamera};
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 
 /// CamOdoCal's Kannala-Brandt test camera as OpenCV FileStorage writes it.
@@ -102,37 +102,37 @@ fn camodocal_yaml_round_trips_every_model_exactly() {
 fn camodocal_yaml_errors_name_the_problem() {
     let missing = CAMODOCAL_KB.replace("   mu: 4.1922826000000000e+02\n", "");
     match parse_camera(&missing) {
-        Err(FileError::MissingKey { key }) => assert_eq!(key, "projection_parameters.mu"),
+        Err(CameraFileError::MissingKey { key }) => assert_eq!(key, "projection_parameters.mu"),
         other => panic!("{other:?}"),
     }
     let unknown = CAMODOCAL_KB.replace("KANNALA_BRANDT", "FISHEYE_9000");
     assert!(matches!(
         parse_camera(&unknown),
-        Err(FileError::UnknownModel { .. })
+        Err(CameraFileError::UnknownModel { .. })
     ));
     let scaramuzza = CAMODOCAL_KB.replace("KANNALA_BRANDT", "SCARAMUZZA");
     assert!(matches!(
         parse_camera(&scaramuzza),
-        Err(FileError::UnsupportedModel { .. })
+        Err(CameraFileError::UnsupportedModel { .. })
     ));
     let wrong_type = CAMODOCAL_KB.replace("mu: 4.1922826000000000e+02", "mu: [1, 2]");
     assert!(matches!(
         parse_camera(&wrong_type),
-        Err(FileError::WrongType { .. })
+        Err(CameraFileError::WrongType { .. })
     ));
     let bad_focal = CAMODOCAL_KB.replace("mu: 4.1922826000000000e+02", "mu: -4.0");
     assert!(matches!(
         parse_camera(&bad_focal),
-        Err(FileError::Parameters { .. })
+        Err(CameraFileError::Parameters { .. })
     ));
-    assert!(matches!(parse_camera(""), Err(FileError::Empty)));
+    assert!(matches!(parse_camera(""), Err(CameraFileError::Empty)));
     assert!(matches!(
         parse_camera("%YAML:1.0\n---\n"),
-        Err(FileError::Empty)
+        Err(CameraFileError::Empty)
     ));
     assert!(matches!(
         parse_camera("model_type: [unclosed"),
-        Err(FileError::Yaml { .. })
+        Err(CameraFileError::Yaml { .. })
     ));
     // Every truncation of the file is an error or (past the last key) the camera: no panic.
     for cut in 0..CAMODOCAL_MEI.len() {
@@ -146,7 +146,7 @@ fn camodocal_yaml_errors_name_the_problem() {
     }
     assert!(matches!(
         read_camera("/nonexistent/x.yaml"),
-        Err(FileError::Io { .. })
+        Err(CameraFileError::Io { .. })
     ));
 }
 
@@ -176,17 +176,17 @@ fn extrinsic_txt_round_trips_and_rejects_bad_rows() {
     let truncated = &text[..text.len() / 3];
     assert!(matches!(
         parse_extrinsics(truncated),
-        Err(FileError::Malformed { .. })
+        Err(CameraFileError::Malformed { .. })
     ));
     let nan = "x\nnan 0 0 0\n0 1 0 0\n0 0 1 0\n";
     assert!(matches!(
         parse_extrinsics(nan),
-        Err(FileError::Malformed { .. })
+        Err(CameraFileError::Malformed { .. })
     ));
     let not_rigid = "x\n2 0 0 0\n0 1 0 0\n0 0 1 0\n";
     assert!(matches!(
         parse_extrinsics(not_rigid),
-        Err(FileError::Malformed { .. })
+        Err(CameraFileError::Malformed { .. })
     ));
 }
 
@@ -269,25 +269,25 @@ fn kalibr_models_map_to_ours_and_others_are_refused() {
     ] {
         let r = Rig::from_kalibr_str(&block(model, "[1, 1, 1, 1, 1, 1]", dist, "[0.1]"));
         assert!(
-            matches!(r, Err(FileError::UnsupportedModel { .. })),
+            matches!(r, Err(CameraFileError::UnsupportedModel { .. })),
             "{model} {dist}: {r:?}"
         );
     }
     let r = Rig::from_kalibr_str(&block("mystery", "[1, 1, 1, 1]", "none", "[]"));
-    assert!(matches!(r, Err(FileError::UnknownModel { .. })));
+    assert!(matches!(r, Err(CameraFileError::UnknownModel { .. })));
     // Missing keys, gaps in the chain, a broken transform, truncation: errors, never panics.
     let r = Rig::from_kalibr_str("cam0:\n  camera_model: pinhole\n");
-    assert!(matches!(r, Err(FileError::MissingKey { .. })));
+    assert!(matches!(r, Err(CameraFileError::MissingKey { .. })));
     let text = trimbot();
     let gap = text.replace("cam1:", "cam2:");
     assert!(matches!(
         Rig::from_kalibr_str(&gap),
-        Err(FileError::Rig { .. })
+        Err(CameraFileError::Rig { .. })
     ));
     let bent = text.replace("[0.9999646166488014,", "[1.9999646166488014,");
     assert!(matches!(
         Rig::from_kalibr_str(&bent),
-        Err(FileError::Rig { .. })
+        Err(CameraFileError::Rig { .. })
     ));
     let no_t = text.replace("  T_cn_cnm1:", "  T_other:");
     assert!(Rig::from_kalibr_str(&no_t).is_err());
@@ -306,7 +306,7 @@ fn rig_writers_refuse_duplicate_names() {
     let dir = tempfile::tempdir().unwrap();
     assert!(matches!(
         rig.write_camodocal_dir(dir.path()),
-        Err(FileError::Rig { .. })
+        Err(CameraFileError::Rig { .. })
     ));
 }
 

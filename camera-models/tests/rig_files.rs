@@ -10,7 +10,7 @@ use ibc_camera_models::camodocal::{
     EXTRINSIC_FILE_NAME, calib_file_name, camera_calib_file_name, format_camera, parse_camera,
     read_camera,
 };
-use ibc_camera_models::{Camera, FileError, PlausibilityError, Rig, RigCamera};
+use ibc_camera_models::{Camera, CameraFileError, PlausibilityError, Rig, RigCamera};
 use nalgebra::Isometry3;
 
 /// The TrimBot2020 camchain (`tests/data/README.md`).
@@ -50,7 +50,7 @@ fn write(dir: &Path, name: &str, text: &str) {
 }
 
 /// The text of `e` names `path` exactly once.
-fn names_once(e: &FileError, path: &Path) {
+fn names_once(e: &CameraFileError, path: &Path) {
     let text = e.to_string();
     let p = path.display().to_string();
     assert_eq!(text.matches(&p).count(), 1, "{text}");
@@ -119,7 +119,7 @@ fn both_file_names_must_agree() {
     );
     let e = Rig::read_camodocal_dir(dir.path()).unwrap_err();
     match &e {
-        FileError::ConflictingCameraFiles {
+        CameraFileError::ConflictingCameraFiles {
             camera,
             first,
             second,
@@ -146,8 +146,8 @@ fn a_camera_without_a_file_or_with_another_name_is_an_error_naming_the_file() {
     let e = Rig::read_camodocal_dir(dir.path()).unwrap_err();
     let extrinsic = dir.path().join("extrinsic.txt");
     assert!(
-        matches!(&e, FileError::InFile { path, source }
-            if path == &extrinsic && matches!(**source, FileError::Rig { .. })),
+        matches!(&e, CameraFileError::InFile { path, source }
+            if path == &extrinsic && matches!(**source, CameraFileError::Rig { .. })),
         "{e}"
     );
     let text = e.to_string();
@@ -160,7 +160,7 @@ fn a_camera_without_a_file_or_with_another_name_is_an_error_naming_the_file() {
     std::fs::write(&wrong, pinhole_yaml("camera_name: left", 458.654)).unwrap();
     let e = Rig::read_camodocal_dir(dir.path()).unwrap_err();
     assert!(
-        matches!(&e, FileError::InFile { path, .. } if path == &wrong),
+        matches!(&e, CameraFileError::InFile { path, .. } if path == &wrong),
         "{e}"
     );
     assert!(e.to_string().contains("`left`"), "{e}");
@@ -226,7 +226,7 @@ fn names_a_camodocal_folder_cannot_hold_are_refused() {
         assert!(
             matches!(
                 rig.write_camodocal_dir(dir.path()),
-                Err(FileError::Rig { .. })
+                Err(CameraFileError::Rig { .. })
             ),
             "{name}"
         );
@@ -284,10 +284,10 @@ fn errors_of_readers_name_the_file_exactly_once() {
     // An I/O error names its path already and is not wrapped again.
     let nothing = dir.path().join("nothing.yaml");
     let e = read_camera(&nothing).unwrap_err();
-    assert!(matches!(e, FileError::Io { .. }), "{e}");
+    assert!(matches!(e, CameraFileError::Io { .. }), "{e}");
     names_once(&e, &nothing);
     let e = Rig::read_camodocal_dir(dir.path().join("no-such-folder")).unwrap_err();
-    assert!(matches!(e, FileError::Io { .. }), "{e}");
+    assert!(matches!(e, CameraFileError::Io { .. }), "{e}");
 }
 
 #[test]
@@ -297,7 +297,7 @@ fn implausible_cameras_are_refused_on_load() {
         .replace("v0: 3.8966377000000000e+02", "v0: -4.7600000000000000e+02");
     let e = parse_camera(&text).unwrap_err();
     assert!(
-        matches!(&e, FileError::Implausible { camera, source: PlausibilityError::PrincipalPoint { name: "v0", .. } }
+        matches!(&e, CameraFileError::Implausible { camera, source: PlausibilityError::PrincipalPoint { name: "v0", .. } }
             if camera == "front"),
         "{e}"
     );
@@ -311,9 +311,9 @@ fn implausible_cameras_are_refused_on_load() {
     );
     let e = Rig::read_camodocal_dir(dir.path()).unwrap_err();
     assert!(
-        matches!(&e, FileError::InFile { path, source }
+        matches!(&e, CameraFileError::InFile { path, source }
             if path == &dir.path().join("front_calib.yaml")
-                && matches!(**source, FileError::Implausible { .. })),
+                && matches!(**source, CameraFileError::Implausible { .. })),
         "{e}"
     );
     // Kalibr: fu = 3.4e38 in cam1, named by its key.
@@ -322,7 +322,7 @@ fn implausible_cameras_are_refused_on_load() {
         .replace("[541.6460202751782,", "[3.4e38,");
     let e = Rig::from_kalibr_str(&chain).unwrap_err();
     assert!(
-        matches!(&e, FileError::Implausible { camera, source: PlausibilityError::FocalLength { name: "fx", .. } }
+        matches!(&e, CameraFileError::Implausible { camera, source: PlausibilityError::FocalLength { name: "fx", .. } }
             if camera == "cam1"),
         "{e}"
     );
@@ -337,7 +337,7 @@ fn implausible_cameras_are_refused_on_load() {
         .replace("0.11030211900967231", "4.3e9");
     let e = Rig::from_kalibr_str(&chain).unwrap_err();
     assert!(
-        matches!(&e, FileError::Implausible { source, .. } if source.parameter() == "k2"),
+        matches!(&e, CameraFileError::Implausible { source, .. } if source.parameter() == "k2"),
         "{e}"
     );
     // Built in code, the same camera is accepted: constructors do not judge plausibility.
@@ -409,7 +409,7 @@ fn malformed_imu_fields_are_errors_naming_the_key() {
     let bent = text.replace("[0.0148655429818,", "[1.5,");
     let e = Rig::from_kalibr_str(&bent).unwrap_err();
     assert!(
-        matches!(&e, FileError::Rig { message } if message.contains("cam0.T_cam_imu")),
+        matches!(&e, CameraFileError::Rig { message } if message.contains("cam0.T_cam_imu")),
         "{e}"
     );
     // Three rows.
@@ -419,7 +419,7 @@ fn malformed_imu_fields_are_errors_naming_the_key() {
     );
     let e = Rig::from_kalibr_str(&short).unwrap_err();
     assert!(
-        matches!(&e, FileError::WrongType { key, .. } if key == "cam0.T_cam_imu"),
+        matches!(&e, CameraFileError::WrongType { key, .. } if key == "cam0.T_cam_imu"),
         "{e}"
     );
     // A bad last row.
@@ -438,7 +438,7 @@ fn malformed_imu_fields_are_errors_naming_the_key() {
         );
         let e = Rig::from_kalibr_str(&t).unwrap_err();
         assert!(
-            matches!(&e, FileError::WrongType { key, .. } if key == "cam1.timeshift_cam_imu"),
+            matches!(&e, CameraFileError::WrongType { key, .. } if key == "cam1.timeshift_cam_imu"),
             "{bad}: {e}"
         );
     }

@@ -37,7 +37,7 @@ pub enum CliError {
         /// The file or folder given.
         path: PathBuf,
         /// The reader's error.
-        source: Box<ibc_camera_models::FileError>,
+        source: Box<ibc_camera_models::CameraFileError>,
     },
     /// The vocabulary file could not be read.
     #[error("vocabulary: {source}")]
@@ -79,8 +79,12 @@ pub enum CliError {
 /// The message of a camera-file error: the path once (the reader's error names the file it
 /// was reading, inside a CamOdoCal folder too), and what a camera file is when the file was
 /// not one.
-fn camera_file_message(path: &std::path::Path, error: &ibc_camera_models::FileError) -> String {
-    use ibc_camera_models::FileError as E;
+fn camera_file_message(
+    path: &std::path::Path,
+    error: &ibc_camera_models::CameraFileError,
+) -> String {
+    use ibc_camera_models::CameraFileError as E;
+    use ibc_camera_models::io::IoError;
     let named = if error.path().is_some() {
         format!("camera file: {error}")
     } else {
@@ -92,8 +96,7 @@ fn camera_file_message(path: &std::path::Path, error: &ibc_camera_models::FileEr
         }
         E::Implausible { .. }
         | E::Parameters { .. }
-        | E::TooLarge { .. }
-        | E::NotRegularFile { .. } => false,
+        | E::Io(IoError::TooLarge { .. } | IoError::NotRegularFile { .. }) => false,
         _ => true,
     };
     if not_a_camera_file {

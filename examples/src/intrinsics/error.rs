@@ -135,7 +135,7 @@ pub enum IntrinsicsError {
     Camera(#[from] ibc_camera_models::ParameterError),
     /// A camera file could not be read.
     #[error("camera file: {0}")]
-    CameraFile(#[from] ibc_camera_models::FileError),
+    CameraFile(#[from] ibc_camera_models::CameraFileError),
     /// The corner file is malformed: the message names the field and, for JSON syntax, the
     /// line and column.
     #[error("{}: {message}", path.as_ref().map_or_else(|| "corner file".to_owned(), |p| p.display().to_string()))]
