@@ -5,3 +5,10 @@ pub mod data;
 pub mod intrinsics;
 pub mod report;
 pub mod sim;
+
+/// Marks an options struct as open to new fields: outside this crate it can only be built
+/// with `..Default::default()` (`CalibrationOptions { refinement, ..Default::default() }`), so
+/// adding a field is not a breaking change (faer's pattern).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[doc(hidden)]
+pub struct NonExhaustive(pub(crate) ());

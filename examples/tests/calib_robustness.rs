@@ -6,7 +6,7 @@
 mod calib_common;
 
 use calib_common::{print, run, worst};
-use ibc_pipeline::calib::{CalibrationOptions, calibrate};
+use ibc_pipeline::calib::{CalibrationOptions, LocalizationOptions, calibrate};
 use ibc_pipeline::report::Report;
 use ibc_pipeline::sim::{Scenario, SimulatedWorld};
 
@@ -96,8 +96,10 @@ fn match_to_map_refuses_a_bad_ratio_and_matches_true_points() {
     let options = CalibrationOptions::default();
     let index = MapIndex::train(&world.map, &options.vocabulary).unwrap();
     let features = &world.log.frames[0].images[0];
-    let mut bad = options.localization.clone();
-    bad.ratio = 1.5;
+    let bad = LocalizationOptions {
+        ratio: 1.5,
+        ..options.localization.clone()
+    };
     assert!(matches!(
         match_to_map(&index, &world.map, features, &bad),
         Err(LocalizationFailure::InvalidOption(_))

@@ -20,6 +20,7 @@
 mod intrinsics_common;
 
 use ibc_camera_models::CameraModel;
+use ibc_pipeline::intrinsics::kb_init::KbInitOptions;
 use ibc_pipeline::intrinsics::simulate::{BoardSimulationOptions, SimulatedBoards};
 use ibc_pipeline::intrinsics::{
     Initialization, IntrinsicCalibration, IntrinsicModel, IntrinsicsOptions, calibrate_intrinsics,
@@ -128,12 +129,19 @@ fn vanishing_point_initialization_alone_gives_the_focal_length_within_5_percent(
     // missing: the hypothesis kept is within 5% of the true mu, and so is every hypothesis
     // whose image saw enough of the board to score well.
     for (missing, use_columns) in [(0.0, false), (0.1, true)] {
-        let mut options = BoardSimulationOptions::for_model(IntrinsicModel::KannalaBrandt);
-        options.missing_fraction = missing;
-        options.seed = 7;
+        let options = BoardSimulationOptions {
+            missing_fraction: missing,
+            seed: 7,
+            ..BoardSimulationOptions::for_model(IntrinsicModel::KannalaBrandt)
+        };
         let sim = simulated_with(IntrinsicModel::KannalaBrandt, 6, 9, &options);
-        let mut calib_options = IntrinsicsOptions::default();
-        calib_options.kb_init.use_columns = use_columns;
+        let calib_options = IntrinsicsOptions {
+            kb_init: KbInitOptions {
+                use_columns,
+                ..Default::default()
+            },
+            ..Default::default()
+        };
         let cal = calibrate_intrinsics(
             &sim.corners,
             &sim.target,

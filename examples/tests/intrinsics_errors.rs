@@ -24,9 +24,11 @@ fn run(corners: &CornerSet, model: IntrinsicModel) -> Result<(), IntrinsicsError
 fn boards_all_parallel_to_the_image_are_degenerate() {
     for model in MODELS {
         for (rows, cols) in [(6, 9), (20, 20)] {
-            let mut options = BoardSimulationOptions::for_model(model);
-            options.parallel_to_image = true;
-            options.seed = 3;
+            let options = BoardSimulationOptions {
+                parallel_to_image: true,
+                seed: 3,
+                ..BoardSimulationOptions::for_model(model)
+            };
             let sim = simulated_with(model, rows, cols, &options);
             // The simulator really did place them parallel.
             assert!(normal_spread_deg(&sim.camera_from_board) < 1e-9);

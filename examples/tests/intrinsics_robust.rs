@@ -133,8 +133,10 @@ fn a_few_wrong_corners_are_found_and_do_not_move_the_intrinsics() {
 fn a_calibration_the_data_do_not_support_is_poor() {
     // Corners far noisier than a detector's: the RMS gate.
     let model = IntrinsicModel::PinholeRadtan;
-    let mut options = BoardSimulationOptions::for_model(model);
-    options.noise_px = 3.0;
+    let options = BoardSimulationOptions {
+        noise_px: 3.0,
+        ..BoardSimulationOptions::for_model(model)
+    };
     let noisy = calibrate(&simulated_with(model, 6, 9, &options).corners, model);
     assert_eq!(noisy.status(), IntrinsicsStatus::Poor);
     assert!(
@@ -146,11 +148,13 @@ fn a_calibration_the_data_do_not_support_is_poor() {
         noisy.warnings
     );
     // Three views of a small board barely tilted: the focal length is not determined.
-    let mut options = BoardSimulationOptions::for_model(model);
-    options.views = 3;
-    options.max_tilt_deg = 12.0;
-    options.min_tilt_deg = 8.0;
-    options.noise_px = 0.5;
+    let options = BoardSimulationOptions {
+        views: 3,
+        max_tilt_deg: 12.0,
+        min_tilt_deg: 8.0,
+        noise_px: 0.5,
+        ..BoardSimulationOptions::for_model(model)
+    };
     let weak = calibrate(&simulated_with(model, 4, 5, &options).corners, model);
     println!(
         "weak: std {:?}, warnings {:?}",

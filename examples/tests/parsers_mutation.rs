@@ -472,8 +472,10 @@ fn truth_corner_and_scenario_files_survive_mutation() {
     );
     let camera = preset_camera(IntrinsicModel::PinholeRadtan).unwrap();
     let target = PlanarTarget::new(4, 5, 0.04).unwrap();
-    let mut options = BoardSimulationOptions::for_model(IntrinsicModel::PinholeRadtan);
-    options.views = 3;
+    let options = BoardSimulationOptions {
+        views: 3,
+        ..BoardSimulationOptions::for_model(IntrinsicModel::PinholeRadtan)
+    };
     let corners = simulate_boards(&camera, &target, &options)
         .unwrap()
         .corners

@@ -12,7 +12,6 @@ use super::error::CalibrationError;
 /// How the vocabulary tree over the map images is trained and how the map database indexes
 /// features for matching.
 #[derive(Clone, Debug, PartialEq)]
-#[non_exhaustive]
 pub struct VocabularyOptions {
     /// Branching factor of the tree. Default 10 (DBoW2's).
     pub branching: u32,
@@ -34,6 +33,9 @@ pub struct VocabularyOptions {
     pub direct_index_levels: u32,
     /// Seed of the subsample and of the k-means seeding. Default 0.
     pub seed: u64,
+    /// Keeps the struct open to new fields: build it with `..Default::default()`.
+    #[doc(hidden)]
+    pub non_exhaustive: crate::NonExhaustive,
 }
 
 impl Default for VocabularyOptions {
@@ -45,13 +47,13 @@ impl Default for VocabularyOptions {
             max_iterations: 10,
             direct_index_levels: 2,
             seed: 0,
+            non_exhaustive: crate::NonExhaustive(()),
         }
     }
 }
 
 /// How one image is localized against the map (the paper's section IV-A).
 #[derive(Clone, Debug, PartialEq)]
-#[non_exhaustive]
 pub struct LocalizationOptions {
     /// The most similar map images matched to each image. Default 10 (the paper's n).
     pub candidates: usize,
@@ -79,6 +81,9 @@ pub struct LocalizationOptions {
     pub local_optimization: bool,
     /// Seed of every image's RANSAC (mixed with the frame and camera indices). Default 0.
     pub seed: u64,
+    /// Keeps the struct open to new fields: build it with `..Default::default()`.
+    #[doc(hidden)]
+    pub non_exhaustive: crate::NonExhaustive,
 }
 
 impl Default for LocalizationOptions {
@@ -94,6 +99,7 @@ impl Default for LocalizationOptions {
             min_iterations: 20,
             local_optimization: false,
             seed: 0,
+            non_exhaustive: crate::NonExhaustive(()),
         }
     }
 }
@@ -107,13 +113,15 @@ impl Default for LocalizationOptions {
 /// enough localized cameras is always kept, and so is a frame that shares no localized
 /// camera with the last kept set.
 #[derive(Clone, Debug, PartialEq)]
-#[non_exhaustive]
 pub struct FrameSetOptions {
     /// Fewest localized cameras in a kept set. Default 2 (the paper's).
     pub min_cameras: usize,
     /// Smallest motion of every camera since the last kept set, metres. Default 0.3 (the
     /// paper's).
     pub min_motion_m: f64,
+    /// Keeps the struct open to new fields: build it with `..Default::default()`.
+    #[doc(hidden)]
+    pub non_exhaustive: crate::NonExhaustive,
 }
 
 impl Default for FrameSetOptions {
@@ -121,13 +129,13 @@ impl Default for FrameSetOptions {
         Self {
             min_cameras: 2,
             min_motion_m: 0.3,
+            non_exhaustive: crate::NonExhaustive(()),
         }
     }
 }
 
 /// How the extrinsics and rig poses are initialized (the paper's section IV-C).
 #[derive(Clone, Debug, PartialEq)]
-#[non_exhaustive]
 pub struct InitializationOptions {
     /// Averaging and hypothesis options of `ibc_rig_averaging::initialize_rig`. Default:
     /// its defaults (Markley rig-pose averaging as in the paper, plus the robustly averaged
@@ -141,6 +149,9 @@ pub struct InitializationOptions {
     /// Each image contributes at most this many of its inlier correspondences (evenly
     /// spaced) to the score. Default 50.
     pub max_observations_per_image: usize,
+    /// Keeps the struct open to new fields: build it with `..Default::default()`.
+    #[doc(hidden)]
+    pub non_exhaustive: crate::NonExhaustive,
 }
 
 impl Default for InitializationOptions {
@@ -149,13 +160,13 @@ impl Default for InitializationOptions {
             rig: RigInitOptions::default(),
             max_sets: 100,
             max_observations_per_image: 50,
+            non_exhaustive: crate::NonExhaustive(()),
         }
     }
 }
 
 /// The non-linear refinement of extrinsics and rig poses (the paper's section IV-D).
 #[derive(Clone, Debug, PartialEq)]
-#[non_exhaustive]
 pub struct RefinementOptions {
     /// Scale `a` of the Cauchy loss `rho(s) = a^2 ln(1 + s / a^2)` on the squared pixel
     /// error, pixels. Default 1 (Ceres's customary scale; the paper uses a Cauchy loss).
@@ -168,6 +179,9 @@ pub struct RefinementOptions {
     /// gives up to ten times more, which would cost time for little gain.
     /// `usize::MAX` keeps them all.
     pub max_observations_per_image: usize,
+    /// Keeps the struct open to new fields: build it with `..Default::default()`.
+    #[doc(hidden)]
+    pub non_exhaustive: crate::NonExhaustive,
 }
 
 impl Default for RefinementOptions {
@@ -176,6 +190,7 @@ impl Default for RefinementOptions {
             cauchy_scale_px: 1.0,
             max_iterations: 50,
             max_observations_per_image: 100,
+            non_exhaustive: crate::NonExhaustive(()),
         }
     }
 }
@@ -198,7 +213,6 @@ pub enum HandEyeMethod {
 
 /// The hand-eye calibration between the rig and the odometry (the paper's section IV-E).
 #[derive(Clone, Debug, PartialEq)]
-#[non_exhaustive]
 pub struct HandEyeOptions {
     /// The method. Default [`HandEyeMethod::Auto`].
     pub method: HandEyeMethod,
@@ -213,6 +227,9 @@ pub struct HandEyeOptions {
     /// independent noise on each pose, which drifting odometry is not (on the default
     /// scenario it moves the in-plane translation 0.1 m away from the truth).
     pub refine: bool,
+    /// Keeps the struct open to new fields: build it with `..Default::default()`.
+    #[doc(hidden)]
+    pub non_exhaustive: crate::NonExhaustive,
 }
 
 impl Default for HandEyeOptions {
@@ -221,14 +238,14 @@ impl Default for HandEyeOptions {
             method: HandEyeMethod::Auto,
             window: 8,
             refine: false,
+            non_exhaustive: crate::NonExhaustive(()),
         }
     }
 }
 
 /// Every option of [`calibrate`](super::calibrate). The defaults are the paper's (see each
 /// stage's options).
-#[derive(Clone, Debug, Default, PartialEq)]
-#[non_exhaustive]
+#[derive(Clone, Debug, PartialEq)]
 pub struct CalibrationOptions {
     /// Vocabulary training and the map database.
     pub vocabulary: VocabularyOptions,
@@ -242,6 +259,23 @@ pub struct CalibrationOptions {
     pub refinement: RefinementOptions,
     /// Hand-eye calibration.
     pub hand_eye: HandEyeOptions,
+    /// Keeps the struct open to new fields: build it with `..Default::default()`.
+    #[doc(hidden)]
+    pub non_exhaustive: crate::NonExhaustive,
+}
+
+impl Default for CalibrationOptions {
+    fn default() -> Self {
+        Self {
+            vocabulary: VocabularyOptions::default(),
+            localization: LocalizationOptions::default(),
+            frame_sets: FrameSetOptions::default(),
+            initialization: InitializationOptions::default(),
+            refinement: RefinementOptions::default(),
+            hand_eye: HandEyeOptions::default(),
+            non_exhaustive: crate::NonExhaustive(()),
+        }
+    }
 }
 
 fn invalid(name: &'static str, reason: impl Into<String>) -> CalibrationError {
@@ -354,12 +388,22 @@ mod tests {
     #[test]
     fn defaults_are_valid_and_bad_values_are_named() {
         assert!(CalibrationOptions::default().validate().is_ok());
-        let mut o = CalibrationOptions::default();
-        o.localization.ratio = 1.5;
+        let o = CalibrationOptions {
+            localization: LocalizationOptions {
+                ratio: 1.5,
+                ..Default::default()
+            },
+            ..Default::default()
+        };
         let e = o.validate().unwrap_err().to_string();
         assert!(e.contains("localization.ratio"), "{e}");
-        let mut o = CalibrationOptions::default();
-        o.refinement.cauchy_scale_px = f64::NAN;
+        let o = CalibrationOptions {
+            refinement: RefinementOptions {
+                cauchy_scale_px: f64::NAN,
+                ..Default::default()
+            },
+            ..Default::default()
+        };
         assert!(
             o.validate()
                 .unwrap_err()

@@ -80,19 +80,14 @@ fn parse_model(text: &str) -> Result<IntrinsicModel, String> {
 /// [`IntrinsicsError::InvalidTarget`] for a malformed `--board` or `--square`.
 pub fn job(args: &IntrinsicsArgs) -> Result<IntrinsicsJob, IntrinsicsError> {
     let source = if args.simulate {
-        let mut options = BoardSimulationOptions::for_model(args.model);
-        if let Some(v) = args.views {
-            options.views = v;
-        }
-        if let Some(n) = args.noise {
-            options.noise_px = n;
-        }
-        if let Some(m) = args.missing {
-            options.missing_fraction = m;
-        }
-        if let Some(s) = args.seed {
-            options.seed = s;
-        }
+        let preset = BoardSimulationOptions::for_model(args.model);
+        let options = BoardSimulationOptions {
+            views: args.views.unwrap_or(preset.views),
+            noise_px: args.noise.unwrap_or(preset.noise_px),
+            missing_fraction: args.missing.unwrap_or(preset.missing_fraction),
+            seed: args.seed.unwrap_or(preset.seed),
+            ..preset
+        };
         CornerSource::Simulate {
             true_camera: args.true_camera.clone(),
             options,

@@ -11,7 +11,7 @@ use std::io::Write as _;
 use std::path::PathBuf;
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
-use ibc_pipeline::calib::{CalibrationOptions, HandEyeMethod};
+use ibc_pipeline::calib::{CalibrationOptions, HandEyeMethod, HandEyeOptions};
 
 pub use error::CliError;
 
@@ -46,14 +46,19 @@ pub enum HandEyeArg {
 impl HandEyeArg {
     /// The calibration options with this hand-eye method.
     fn options(self) -> CalibrationOptions {
-        let mut options = CalibrationOptions::default();
-        options.hand_eye.method = match self {
+        let method = match self {
             Self::Auto => HandEyeMethod::Auto,
             Self::Planar => HandEyeMethod::Planar,
             Self::SixDof => HandEyeMethod::Daniilidis,
             Self::None => HandEyeMethod::Skip,
         };
-        options
+        CalibrationOptions {
+            hand_eye: HandEyeOptions {
+                method,
+                ..Default::default()
+            },
+            ..Default::default()
+        }
     }
 }
 

@@ -106,7 +106,6 @@ impl FromStr for IntrinsicModel {
 
 /// Options of [`calibrate_intrinsics`].
 #[derive(Clone, Debug, PartialEq)]
-#[non_exhaustive]
 pub struct IntrinsicsOptions {
     /// The Kannala-Brandt initialization's options.
     pub kb_init: KbInitOptions,
@@ -116,6 +115,9 @@ pub struct IntrinsicsOptions {
     /// function and parameter tolerances tightened to 1e-12 and up to 100 iterations, since
     /// the problem is small and the intrinsics are wanted to a hundredth of a pixel.
     pub solver: SolverOptions,
+    /// Keeps the struct open to new fields: build it with `..Default::default()`.
+    #[doc(hidden)]
+    pub non_exhaustive: crate::NonExhaustive,
 }
 
 impl Default for IntrinsicsOptions {
@@ -128,6 +130,7 @@ impl Default for IntrinsicsOptions {
             kb_init: KbInitOptions::default(),
             min_normal_spread_deg: MIN_NORMAL_SPREAD_DEG,
             solver,
+            non_exhaustive: crate::NonExhaustive(()),
         }
     }
 }

@@ -36,7 +36,6 @@ pub const MIN_LINE_CORNERS: usize = 4;
 
 /// Options of the Kannala-Brandt initialization.
 #[derive(Clone, Debug, PartialEq)]
-#[non_exhaustive]
 pub struct KbInitOptions {
     /// Corners a row or column needs to be fitted. Default [`MIN_LINE_CORNERS`].
     pub min_line_corners: usize,
@@ -46,6 +45,9 @@ pub struct KbInitOptions {
     /// Cap, in pixels, of one corner's reprojection error in the hypothesis score, so that an
     /// image whose PnP fails under a wrong focal length cannot drown the others. Default 20 px.
     pub score_cap_px: f64,
+    /// Keeps the struct open to new fields: build it with `..Default::default()`.
+    #[doc(hidden)]
+    pub non_exhaustive: crate::NonExhaustive,
 }
 
 impl Default for KbInitOptions {
@@ -54,6 +56,7 @@ impl Default for KbInitOptions {
             min_line_corners: MIN_LINE_CORNERS,
             use_columns: true,
             score_cap_px: 20.0,
+            non_exhaustive: crate::NonExhaustive(()),
         }
     }
 }

@@ -27,7 +27,6 @@ pub const MAX_VIEW_ATTEMPTS: usize = 10_000;
 
 /// Options of [`simulate_boards`].
 #[derive(Clone, Debug, PartialEq)]
-#[non_exhaustive]
 pub struct BoardSimulationOptions {
     /// Number of views. Default 20 (the test).
     pub views: usize,
@@ -54,6 +53,9 @@ pub struct BoardSimulationOptions {
     pub parallel_to_image: bool,
     /// Seed of the random views and noise.
     pub seed: u64,
+    /// Keeps the struct open to new fields: build it with `..Default::default()`.
+    #[doc(hidden)]
+    pub non_exhaustive: crate::NonExhaustive,
 }
 
 impl Default for BoardSimulationOptions {
@@ -69,6 +71,7 @@ impl Default for BoardSimulationOptions {
             min_visible_fraction: 0.5,
             parallel_to_image: false,
             seed: 0,
+            non_exhaustive: crate::NonExhaustive(()),
         }
     }
 }

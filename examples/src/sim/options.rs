@@ -5,7 +5,6 @@ use super::error::SimError;
 /// Noise levels of a simulated world. The defaults are the paper's setting: sigma 0.5 px and
 /// an exact map.
 #[derive(Clone, Debug, PartialEq)]
-#[non_exhaustive]
 pub struct NoiseOptions {
     /// Standard deviation of the keypoint noise, pixels per axis (Gaussian). Default 0.5.
     pub pixel_sigma_px: f64,
@@ -29,6 +28,9 @@ pub struct NoiseOptions {
     /// Odometry rotation noise per step, radians per metre travelled (standard deviation per
     /// axis). Default 0.0005 (0.03 degrees per metre).
     pub odometry_rotation_rad_per_m: f64,
+    /// Keeps the struct open to new fields: build it with `..Default::default()`.
+    #[doc(hidden)]
+    pub non_exhaustive: crate::NonExhaustive,
 }
 
 impl Default for NoiseOptions {
@@ -41,13 +43,13 @@ impl Default for NoiseOptions {
             map_point_sigma_m: 0.0,
             odometry_translation: 0.005,
             odometry_rotation_rad_per_m: 0.0005,
+            non_exhaustive: crate::NonExhaustive(()),
         }
     }
 }
 
 /// When a landmark is detected in an image.
 #[derive(Clone, Debug, PartialEq)]
-#[non_exhaustive]
 pub struct DetectionOptions {
     /// Landmarks farther than this from the camera are not detected, metres. Default 30.
     pub max_range_m: f64,
@@ -61,6 +63,9 @@ pub struct DetectionOptions {
     /// degrees: beyond it the landmark is seen too obliquely (or from behind its surface) to
     /// be detected. Default 85.
     pub max_view_angle_deg: f64,
+    /// Keeps the struct open to new fields: build it with `..Default::default()`.
+    #[doc(hidden)]
+    pub non_exhaustive: crate::NonExhaustive,
 }
 
 impl Default for DetectionOptions {
@@ -70,6 +75,7 @@ impl Default for DetectionOptions {
             full_range_m: 20.0,
             min_range_m: 0.3,
             max_view_angle_deg: 85.0,
+            non_exhaustive: crate::NonExhaustive(()),
         }
     }
 }

@@ -10,8 +10,10 @@ use ibc_pipeline::intrinsics::{IntrinsicModel, PlanarTarget};
 /// The simulated views of a `rows x cols` board (4 cm squares) by the model's preset
 /// camera: 20 views, 0.2 px noise per coordinate, the model's default geometry.
 pub fn simulated(model: IntrinsicModel, rows: u32, cols: u32, seed: u64) -> SimulatedBoards {
-    let mut options = BoardSimulationOptions::for_model(model);
-    options.seed = seed;
+    let options = BoardSimulationOptions {
+        seed,
+        ..BoardSimulationOptions::for_model(model)
+    };
     simulated_with(model, rows, cols, &options)
 }
 
