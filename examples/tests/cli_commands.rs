@@ -137,6 +137,26 @@ fn simulate_then_calibrate_gives_the_demo_result() {
     let left = &calibrated["cameras"][1]["rig_from_camera"]["translation"];
     let t = rig.cameras[1].rig_from_camera.translation.vector;
     assert!((t.x - left[0].as_f64().unwrap()).abs() < 1e-12);
+    // The plots have axes with units, round ticks and legends.
+    let top = std::fs::read_to_string(out.join(output_names::TOP_VIEW)).unwrap();
+    for label in [
+        ">x [m] (map frame)<",
+        ">y [m] (map frame)<",
+        "camera `left` centres",
+        "rig trajectory",
+        "ahead of camera 0 [m]",
+    ] {
+        assert!(top.contains(label), "top view: {label}");
+    }
+    let histogram = std::fs::read_to_string(out.join(output_names::ERRORS)).unwrap();
+    for label in [
+        ">reprojection error [px]<",
+        "correspondences per bin of",
+        "before refinement (mean",
+        ">0.2<",
+    ] {
+        assert!(histogram.contains(label), "histogram: {label}");
+    }
     // The text table of `calibrate` without --json.
     let table = std::fs::read_to_string(out.join(output_names::REPORT_TEXT)).unwrap();
     assert!(table.contains("frame sets") && table.contains("hand-eye (guo-planar"));

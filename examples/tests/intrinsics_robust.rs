@@ -196,6 +196,15 @@ fn ibc_intrinsics_exits_3_on_a_poor_calibration_and_is_quiet_when_asked() {
     assert_eq!(report["status"], "poor");
     assert_eq!(report["warnings"][0]["kind"], "high_rms");
     assert!(report["images"][0]["residuals"][0]["du"].is_number());
+    let plot = std::fs::read_to_string(out.join("residuals.svg")).unwrap();
+    for label in [
+        ">u [px]<",
+        ">v [px]<",
+        "outlier corner (excluded)",
+        "principal point",
+    ] {
+        assert!(plot.contains(label), "residual plot: {label}");
+    }
     let ok = dir.path().join("ok");
     let o = std::process::Command::new(env!("CARGO_BIN_EXE_ibc"))
         .args(["intrinsics", "--simulate", "--model", "kb", "--out"])

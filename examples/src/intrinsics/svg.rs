@@ -1,14 +1,15 @@
-//! An SVG of the reprojection residuals over the image: each corner where it was detected,
-//! with its residual drawn as a line magnified by a stated factor, coloured by image.
-
-use std::fmt::Write as _;
+//! An SVG of the reprojection residuals over the image, with pixel axes and a legend: each
+//! corner where it was detected, its residual drawn as a line magnified by a stated factor,
+//! coloured by image, the outliers ringed.
 
 use ibc_camera_models::CameraModel;
+use nalgebra::Vector2;
 
 use super::calibrate::IntrinsicCalibration;
 use super::corners::CornerSet;
+use crate::report::plot::{Axes, Mark, Svg, legend, xml_escape};
 
-/// Width of the drawing in SVG units; the image is scaled to fit it.
+/// Width of the image area in SVG units; the image is scaled to fit it.
 const DRAWING_WIDTH: f64 = 1000.0;
 
 /// The magnification that draws the 95th-percentile residual about 2% of the image width
@@ -42,78 +43,101 @@ fn magnification(calibration: &IntrinsicCalibration, width: f64) -> f64 {
     (step * decade).max(1.0)
 }
 
-/// The residual plot of a calibration (`corners` are the corners it was computed from).
+/// The residual plot of a calibration (`corners` are the corners it was computed from): the
+/// image with pixel axes, each corner where it was detected (one colour per image), its
+/// residual magnified, the outlier corners ringed, and the principal point.
 pub fn residual_svg(calibration: &IntrinsicCalibration, corners: &CornerSet) -> String {
     let (w, h) = (f64::from(corners.width), f64::from(corners.height));
-    let s = DRAWING_WIDTH / w;
-    let (dw, dh) = (DRAWING_WIDTH, h * s);
-    let header = 48.0;
+    let (left, top) = (80.0, 64.0);
+    let size = Vector2::new(DRAWING_WIDTH, DRAWING_WIDTH * h / w);
+    let mut svg = Svg::new(left + size.x + 30.0, top + size.y + 60.0);
     let gain = magnification(calibration, w);
-    let mut out = String::new();
-    let _ = writeln!(
-        out,
-        r#"<svg xmlns="http://www.w3.org/2000/svg" width="{dw:.0}" height="{:.0}" viewBox="0 0 {dw:.0} {:.0}" font-family="sans-serif">"#,
-        dh + header,
-        dh + header
+    // The image's v runs down the page: bottom-left is (-0.5, h - 0.5).
+    let axes = Axes::new(
+        Vector2::new(left, top),
+        size,
+        Vector2::new(-0.5, h - 0.5),
+        Vector2::new(w - 0.5, -0.5),
     );
-    let _ = writeln!(
-        out,
-        r#"<text x="8" y="20" font-size="16">Reprojection residuals, {} model: RMS {:.3} px per coordinate over {} corners in {} images</text>"#,
-        calibration.model.short_name(),
-        calibration.rms_px,
-        calibration.residuals.iter().map(Vec::len).sum::<usize>(),
-        calibration.residuals.len()
+    svg.text(
+        Vector2::new(left, 22.0),
+        "start",
+        "#000",
+        &format!(
+            "reprojection residuals, {} model: RMS {:.3} px per coordinate over {} corners in {} \
+             images ({} outliers)",
+            calibration.model.short_name(),
+            calibration.rms_px,
+            calibration.residuals.iter().map(Vec::len).sum::<usize>(),
+            calibration
+                .residuals
+                .iter()
+                .filter(|r| !r.is_empty())
+                .count(),
+            calibration.outlier_corners
+        ),
     );
-    let _ = writeln!(
-        out,
-        r#"<text x="8" y="40" font-size="13">Dots: detected corners; lines: residual (projected minus detected) magnified {gain}x; one colour per image. Image {}x{} px.</text>"#,
-        corners.width, corners.height
-    );
-    let _ = writeln!(
-        out,
-        r##"<rect x="0" y="{header}" width="{dw:.1}" height="{dh:.1}" fill="#fafafa" stroke="#333"/>"##
-    );
+    axes.draw(&mut svg, "u [px]", "v [px]");
     let n = calibration.residuals.len().max(1);
-    for (i, (image, residuals)) in corners
+    for (i, ((image, residuals), inliers)) in corners
         .images
         .iter()
         .zip(&calibration.residuals)
+        .zip(&calibration.inliers)
         .enumerate()
     {
         let hue = 360.0 * i as f64 / n as f64;
-        let _ = writeln!(
-            out,
-            r#"<g stroke="hsl({hue:.0},70%,40%)" fill="hsl({hue:.0},70%,40%)"><title>{}</title>"#,
+        svg.raw(&format!(
+            r#"<g color="hsl({hue:.0},70%,40%)"><title>{}</title>"#,
             xml_escape(&image.name)
-        );
-        for (c, r) in image.corners.iter().zip(residuals) {
-            let (x, y) = ((c.u + 0.5) * s, (c.v + 0.5) * s + header);
-            let (x2, y2) = (x + r.x * gain * s, y + r.y * gain * s);
-            let _ = writeln!(
-                out,
-                r#"<circle cx="{x:.2}" cy="{y:.2}" r="1.5" stroke="none"/><line x1="{x:.2}" y1="{y:.2}" x2="{x2:.2}" y2="{y2:.2}" stroke-width="1"/>"#
-            );
+        ));
+        for ((c, r), inlier) in image.corners.iter().zip(residuals).zip(inliers) {
+            let p = Vector2::new(c.u, c.v);
+            let at = axes.map(p);
+            svg.circle(at, 1.5, "currentColor");
+            if r.x.is_finite() && r.y.is_finite() {
+                svg.line(at, axes.map(p + r * gain), "currentColor", 1.0);
+            }
+            if !inlier {
+                svg.ring(at, 5.0, "#d62728");
+            }
         }
-        out.push_str("</g>\n");
+        svg.raw("</g>");
     }
-    // The principal point.
-    let pp = calibration.camera.principal_point();
-    let (px, py) = ((pp.x + 0.5) * s, (pp.y + 0.5) * s + header);
-    let _ = writeln!(
-        out,
-        r##"<g stroke="#000" stroke-width="1"><line x1="{:.1}" y1="{py:.1}" x2="{:.1}" y2="{py:.1}"/><line x1="{px:.1}" y1="{:.1}" x2="{px:.1}" y2="{:.1}"/><title>principal point</title></g>"##,
-        px - 8.0,
-        px + 8.0,
-        py - 8.0,
-        py + 8.0
+    let pp = axes.map(calibration.camera.principal_point());
+    svg.line(
+        pp - Vector2::new(8.0, 0.0),
+        pp + Vector2::new(8.0, 0.0),
+        "#000",
+        1.0,
     );
-    out.push_str("</svg>\n");
-    out
-}
-
-/// Escapes text for an XML text node.
-fn xml_escape(s: &str) -> String {
-    s.replace('&', "&amp;")
-        .replace('<', "&lt;")
-        .replace('>', "&gt;")
+    svg.line(
+        pp - Vector2::new(0.0, 8.0),
+        pp + Vector2::new(0.0, 8.0),
+        "#000",
+        1.0,
+    );
+    legend(
+        &mut svg,
+        &axes,
+        &[
+            (
+                Mark::Dot,
+                "#555",
+                "detected corner (one colour per image)".to_owned(),
+            ),
+            (
+                Mark::Line,
+                "#555",
+                format!("residual, projected minus detected, x{gain}"),
+            ),
+            (
+                Mark::Ring,
+                "#d62728",
+                "outlier corner (excluded)".to_owned(),
+            ),
+            (Mark::Line, "#000", "principal point (cross)".to_owned()),
+        ],
+    );
+    svg.finish()
 }

@@ -5,6 +5,7 @@
 
 mod files;
 mod json;
+pub(crate) mod plot;
 mod svg;
 mod table;
 
