@@ -348,7 +348,7 @@ mod tests {
         assert_eq!(tick_label(0.0, step), "0");
         let (t, step) = nice_ticks(0.001, 0.0042, 4);
         assert_eq!(step, 0.001);
-        assert_eq!(tick_label(t[1], step), "0.003");
+        assert_eq!(tick_label(t[1], step), "0.002");
         assert_eq!(nice_ticks(1.0, 1.0, 5).0, vec![1.0]);
     }
 
