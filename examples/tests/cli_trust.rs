@@ -266,7 +266,7 @@ fn yaml_alias_bombs_are_refused() {
     std::fs::write(&big, format!("version: 1\n#{}\n", "x".repeat(2 << 20))).unwrap();
     check_failure(
         &ibc_within(&["demo", "--scenario", s(&big)], quick),
-        &["big.yaml", "more than the 1048576"],
+        &["big.yaml", "over the 1048576-byte limit"],
     );
 }
 

@@ -110,16 +110,13 @@ fn camera_file_message(
 
 /// A likely cause of a data-file error the reader's message does not already give.
 fn hint(error: &DataFileError) -> &'static str {
+    use ibc_camera_models::io::IoError;
     match error {
-        DataFileError::Io { source, .. } if source.kind() == std::io::ErrorKind::NotFound => {
+        DataFileError::Io(IoError::Os { source, .. })
+            if source.kind() == std::io::ErrorKind::NotFound =>
+        {
             " (is the path right? `ibc simulate` writes map.ibcmap, log.ibclog, camchain.yaml \
              and truth.json)"
-        }
-        DataFileError::Io { source, .. } if source.kind() == std::io::ErrorKind::IsADirectory => {
-            " (a folder was given where a file is expected)"
-        }
-        DataFileError::Io { source, .. } if source.kind() == std::io::ErrorKind::InvalidData => {
-            " (the file is not text: was another file given?)"
         }
         _ => "",
     }

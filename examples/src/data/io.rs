@@ -151,12 +151,13 @@ mod checksum;
 mod descriptor;
 mod error;
 mod features;
-mod input;
 mod log_format;
 mod map_format;
 mod truth_json;
 
 use std::path::Path;
+
+use ibc_camera_models::io::IoError;
 
 pub use atomic::{
     STAGING_PREFIX, STALE_STAGING_SECONDS, StagedFiles, remove_staged_outputs, write_atomically,
@@ -165,10 +166,17 @@ pub(crate) use bytes::unit_quaternion;
 pub use checksum::xxh64;
 pub use descriptor::FileDescriptor;
 pub use error::{DataFileError, DescriptorLayout, FormatError};
-pub use input::{
-    MAX_BINARY_INPUT_BYTES, MAX_SCENARIO_BYTES, MAX_TEXT_INPUT_BYTES, open_regular, read_input,
-    read_text_input,
-};
+
+/// The largest text input (ground truth, corner file): 256 MiB. A ground truth holds about
+/// 200 bytes per frame (a million frames in 200 MB); a corner file about 60 bytes per corner.
+pub const MAX_TEXT_INPUT_BYTES: u64 = 256 << 20;
+
+/// The largest scenario file: 1 MiB, a thousand times a real one.
+pub const MAX_SCENARIO_BYTES: u64 = 1 << 20;
+
+/// The largest map or rig log: 16 GiB, read whole into memory. The default scenario's map is
+/// 65 MB and its log 104 MB.
+pub const MAX_BINARY_INPUT_BYTES: u64 = 16 << 30;
 pub use log_format::{MAX_CAMERA_NAME_BYTES, log_from_bytes, log_to_bytes};
 pub use map_format::{NO_POINT, map_from_bytes, map_to_bytes};
 pub use truth_json::{TRUTH_FORMAT, truth_from_json, truth_to_json};
@@ -191,10 +199,10 @@ pub mod file_names {
 }
 
 fn read_bytes(path: &Path) -> Result<Vec<u8>, DataFileError> {
-    read_input(path, MAX_BINARY_INPUT_BYTES).map_err(|source| DataFileError::Io {
-        path: path.to_owned(),
-        source,
-    })
+    Ok(ibc_camera_models::io::read_bytes(
+        path,
+        MAX_BINARY_INPUT_BYTES,
+    )?)
 }
 
 fn format_error(path: &Path) -> impl Fn(FormatError) -> DataFileError + '_ {
@@ -257,10 +265,7 @@ pub fn write_log<D: FileDescriptor>(
 /// valid ground truth.
 pub fn read_truth(path: impl AsRef<Path>) -> Result<GroundTruth, DataFileError> {
     let path = path.as_ref();
-    let text = read_text_input(path, MAX_TEXT_INPUT_BYTES).map_err(|source| DataFileError::Io {
-        path: path.to_owned(),
-        source,
-    })?;
+    let text = ibc_camera_models::io::read_text(path, MAX_TEXT_INPUT_BYTES)?;
     truth_from_json(&text).map_err(|source| DataFileError::Json {
         path: path.to_owned(),
         source,
@@ -290,16 +295,11 @@ pub fn write_truth(path: impl AsRef<Path>, truth: &GroundTruth) -> Result<(), Da
 pub fn read_descriptor_layout(path: impl AsRef<Path>) -> Result<DescriptorLayout, DataFileError> {
     use std::io::Read;
     let path = path.as_ref();
-    let io = |source| DataFileError::Io {
-        path: path.to_owned(),
-        source,
-    };
     let mut header = Vec::with_capacity(bytes::COMMON_HEADER_LEN);
-    open_regular(path)
-        .map_err(io)?
+    ibc_camera_models::io::open_regular(path)?
         .0
         .take(bytes::COMMON_HEADER_LEN as u64)
         .read_to_end(&mut header)
-        .map_err(io)?;
+        .map_err(|e| IoError::os(path, e))?;
     bytes::peek_layout(&header).map_err(format_error(path))
 }

@@ -213,9 +213,11 @@ pub fn run_job(
         t.push('\n');
         t
     };
-    let stdout_error = |source| IntrinsicsError::Io {
-        path: PathBuf::from("<standard output>"),
-        source,
+    let stdout_error = |source| {
+        IntrinsicsError::Io(ibc_camera_models::io::IoError::os(
+            std::path::Path::new("<standard output>"),
+            source,
+        ))
     };
     stdout.write_all(text.as_bytes()).map_err(stdout_error)?;
     stdout.flush().map_err(stdout_error)?;

@@ -162,11 +162,7 @@ impl CornerSet {
     /// [`from_json_str`](Self::from_json_str), naming the file.
     pub fn read(path: impl AsRef<Path>) -> Result<Self, IntrinsicsError> {
         let path = path.as_ref();
-        let text = crate::data::io::read_text_input(path, crate::data::io::MAX_TEXT_INPUT_BYTES)
-            .map_err(|source| IntrinsicsError::Io {
-                path: path.to_owned(),
-                source,
-            })?;
+        let text = ibc_camera_models::io::read_text(path, crate::data::io::MAX_TEXT_INPUT_BYTES)?;
         Self::from_json_str(&text).map_err(|e| match e {
             IntrinsicsError::CornerFile { message, .. } => IntrinsicsError::CornerFile {
                 path: Some(path.to_owned()),

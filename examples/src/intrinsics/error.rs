@@ -145,14 +145,10 @@ pub enum IntrinsicsError {
         /// What is wrong with it.
         message: String,
     },
-    /// A file or folder could not be read or created.
-    #[error("cannot access {}: {source}", path.display())]
-    Io {
-        /// The file or folder.
-        path: PathBuf,
-        /// The operating system's error.
-        source: std::io::Error,
-    },
+    /// A file could not be read or written (missing, not a regular file, too large, not
+    /// text, standard output closed); names the file.
+    #[error(transparent)]
+    Io(#[from] ibc_camera_models::io::IoError),
     /// Writing an output file failed (nothing is left behind).
     #[error(transparent)]
     Output(#[from] DataFileError),

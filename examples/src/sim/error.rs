@@ -36,14 +36,10 @@ pub enum SimError {
     /// The environment cannot hold the trajectory asked for.
     #[error("environment: {0}")]
     Environment(String),
-    /// A scenario file or an output folder could not be read or created.
-    #[error("cannot access {}: {source}", path.display())]
-    Io {
-        /// The file or folder.
-        path: PathBuf,
-        /// The operating system's error.
-        source: std::io::Error,
-    },
+    /// A scenario file could not be read (missing, not a regular file, too large, not text);
+    /// names the file.
+    #[error(transparent)]
+    Io(#[from] ibc_camera_models::io::IoError),
     /// Writing a world's files failed.
     #[error(transparent)]
     File(#[from] DataFileError),

@@ -553,11 +553,7 @@ impl Scenario {
     /// key at fault otherwise.
     pub fn from_yaml_file(path: impl AsRef<Path>) -> Result<Self, SimError> {
         let path = path.as_ref();
-        let text = crate::data::io::read_text_input(path, crate::data::io::MAX_SCENARIO_BYTES)
-            .map_err(|source| SimError::Io {
-                path: path.to_owned(),
-                source,
-            })?;
+        let text = ibc_camera_models::io::read_text(path, crate::data::io::MAX_SCENARIO_BYTES)?;
         let base_dir = path.parent().map_or_else(PathBuf::new, Path::to_path_buf);
         Parser { path: Some(path) }.parse(&text, &base_dir)
     }

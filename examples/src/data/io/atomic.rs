@@ -28,6 +28,8 @@ use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicU64, Ordering};
 
+use ibc_camera_models::io::IoError;
+
 use super::error::DataFileError;
 
 /// The prefix of staging folders.
@@ -46,10 +48,7 @@ static STAGING: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
 static NEXT_STAGING: AtomicU64 = AtomicU64::new(0);
 
 fn io_error(path: &Path) -> impl Fn(std::io::Error) -> DataFileError + '_ {
-    move |source| DataFileError::Io {
-        path: path.to_owned(),
-        source,
-    }
+    move |source| IoError::os(path, source).into()
 }
 
 /// The registry, whatever a panicking holder left in it (a list of paths is never
@@ -240,7 +239,7 @@ impl StagedFiles {
             std::fs::create_dir_all(parent).map_err(io_error(path))?;
         }
         write_new(&staged, bytes).map_err(|e| match e {
-            DataFileError::Io { source, .. } => io_error(path)(source),
+            DataFileError::Io(IoError::Os { source, .. }) => io_error(path)(source),
             other => other,
         })?;
         drop(registry);

@@ -3,6 +3,8 @@
 use std::fmt;
 use std::path::PathBuf;
 
+use ibc_camera_models::io::IoError;
+
 use ibc_vocab_tree::DescriptorKind;
 
 /// The descriptor layout a file records: its kind and width.
@@ -133,14 +135,10 @@ pub enum FormatError {
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum DataFileError {
-    /// The file could not be read, created, written or renamed.
-    #[error("cannot access {}: {source}", path.display())]
-    Io {
-        /// The file.
-        path: PathBuf,
-        /// The operating system's error.
-        source: std::io::Error,
-    },
+    /// The file could not be read, created, written or renamed (or is not a regular file, or
+    /// is too large); names the file.
+    #[error(transparent)]
+    Io(#[from] IoError),
     /// The file's bytes are not a valid file of the kind asked for, or the data cannot be
     /// written as one.
     #[error("{}: {source}", path.display())]
@@ -164,7 +162,8 @@ impl DataFileError {
     /// The file the error is about.
     pub fn path(&self) -> &std::path::Path {
         match self {
-            Self::Io { path, .. } | Self::Format { path, .. } | Self::Json { path, .. } => path,
+            Self::Io(e) => e.path(),
+            Self::Format { path, .. } | Self::Json { path, .. } => path,
         }
     }
 }
