@@ -28,7 +28,6 @@ struct Posting {
 }
 
 /// Options of [`Database::query`].
-#[non_exhaustive]
 pub struct QueryOptions<'a> {
     /// The most results returned, best first. Default 10: CamOdoCal localizes an image
     /// against its 10 most similar map images.
@@ -39,6 +38,9 @@ pub struct QueryOptions<'a> {
     /// Keep only the images for which this returns true (to leave out, say, the frames next
     /// to the query in time). Default: none.
     pub filter: Option<&'a (dyn Fn(ImageId) -> bool + Sync)>,
+    /// Keeps the struct open to new fields: build it with `..Default::default()`.
+    #[doc(hidden)]
+    pub non_exhaustive: crate::NonExhaustive,
 }
 
 impl Default for QueryOptions<'_> {
@@ -47,6 +49,7 @@ impl Default for QueryOptions<'_> {
             max_results: 10,
             min_score: None,
             filter: None,
+            non_exhaustive: crate::NonExhaustive(()),
         }
     }
 }

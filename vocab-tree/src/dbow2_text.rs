@@ -19,7 +19,7 @@ use std::io::{BufRead, Read};
 use std::path::Path;
 
 use crate::descriptor::Descriptor;
-use crate::error::{FileError, Result, VocabError};
+use crate::error::{Result, VocabError, VocabFileError};
 use crate::scoring::Scoring;
 use crate::vocabulary::{MAX_DEPTH, Vocabulary, VocabularyParts};
 use crate::weighting::Weighting;
@@ -30,7 +30,7 @@ use crate::weighting::Weighting;
 pub const MAX_LINE_BYTES: usize = 64 * 1024;
 
 fn text_error(line: usize, reason: impl Into<String>) -> VocabError {
-    FileError::Text {
+    VocabFileError::Text {
         line,
         reason: reason.into(),
     }
@@ -218,7 +218,7 @@ impl<D: Descriptor> Vocabulary<D> {
     /// exceed [`MAX_LINE_BYTES`].
     pub fn load_dbow2_text(path: impl AsRef<Path>) -> Result<Self> {
         let path = path.as_ref();
-        let file = crate::file_format::open_regular(path)?;
+        let (file, _) = ibc_camera_models::io::open_regular(path)?;
         Self::from_dbow2_text(std::io::BufReader::with_capacity(1 << 20, file))
             .map_err(|e| e.in_file(path))
     }

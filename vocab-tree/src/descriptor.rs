@@ -28,16 +28,17 @@ pub enum DescriptorKind {
 }
 
 impl DescriptorKind {
-    /// The code of the kind in the file format.
-    pub(crate) fn code(self) -> u8 {
+    /// The byte that names the kind in every ibc file (vocabularies, maps, rig logs): 1 for
+    /// binary, 2 for float.
+    pub fn code(self) -> u8 {
         match self {
             Self::Binary => 1,
             Self::Float => 2,
         }
     }
 
-    /// The kind with the given file code.
-    pub(crate) fn from_code(code: u8) -> Option<Self> {
+    /// The kind with the given file code ([`code`](Self::code)), `None` for another byte.
+    pub fn from_code(code: u8) -> Option<Self> {
         match code {
             1 => Some(Self::Binary),
             2 => Some(Self::Float),
@@ -55,8 +56,6 @@ pub(crate) mod sealed {
         type Dist: Copy + PartialOrd + Into<f64>;
         /// Running sums for a centroid.
         type Acc;
-        /// Bytes of one element in files (8 for `u64`, 4 for `f32`).
-        const ELEM_BYTES: usize;
         /// The distance with the given instruction set (the result does not depend on it).
         fn distance_isa(isa: Isa, a: &Self, b: &Self) -> Self::Dist;
         /// Index and distance of the nearest candidate (lowest index on ties), `(0, MAX)` for
@@ -76,18 +75,12 @@ pub(crate) mod sealed {
         fn metric(d: Self::Dist) -> f64;
         /// The all-zero descriptor.
         fn zero() -> Self;
-        /// True when every element is finite (always true for binary descriptors).
-        fn is_finite(&self) -> bool;
         /// Empty centroid sums.
         fn acc_zero() -> Self::Acc;
         /// Adds one member.
         fn acc_add(acc: &mut Self::Acc, x: &Self);
         /// The centroid of `count > 0` members.
         fn acc_finish(acc: &Self::Acc, count: u64) -> Self;
-        /// Appends the little-endian bytes.
-        fn write_le(&self, out: &mut Vec<u8>);
-        /// Reads from exactly `WIDTH * ELEM_BYTES` little-endian bytes.
-        fn read_le(bytes: &[u8]) -> Self;
         /// Parses the descriptor tokens of a DBoW2 text vocabulary line.
         fn parse_dbow2(tokens: &mut dyn Iterator<Item = &str>) -> Result<Self, String>;
     }
@@ -112,6 +105,21 @@ pub trait Descriptor: sealed::Sealed + Copy + Debug + PartialEq + Send + Sync + 
     /// The metric distance: Hamming distance in bits, or the (not squared) Euclidean distance.
     /// This is the distance the ratio test compares.
     fn metric_distance(&self, other: &Self) -> f64;
+
+    /// Bytes of one element in files: 8 for a `u64` word, 4 for an `f32` value.
+    const ELEMENT_BYTES: usize;
+    /// Bytes of one descriptor in files, `WIDTH * ELEMENT_BYTES`.
+    const BYTES: usize = Self::WIDTH * Self::ELEMENT_BYTES;
+
+    /// Appends the descriptor's [`BYTES`](Self::BYTES) little-endian bytes: binary words as
+    /// `u64`, float values as IEEE-754 `f32`. Every ibc file (vocabularies, maps, rig logs)
+    /// stores descriptors so.
+    fn write_le(&self, out: &mut Vec<u8>);
+    /// The descriptor in `bytes`, which holds [`BYTES`](Self::BYTES) little-endian bytes
+    /// (callers slice them; elements past a shorter slice read as zeros).
+    fn read_le(bytes: &[u8]) -> Self;
+    /// True when every element is finite (always for binary descriptors).
+    fn is_finite(&self) -> bool;
 }
 
 /// Hamming distance, written so that it compiles to `popcnt` inside a function compiled with
@@ -200,7 +208,6 @@ pub(crate) fn nearest_l2<const D: usize>(q: &[f32; D], cands: &[[f32; D]]) -> (u
 impl<const W: usize> sealed::Sealed for [u64; W] {
     type Dist = u32;
     type Acc = Vec<u64>;
-    const ELEM_BYTES: usize = 8;
 
     fn distance_isa(isa: Isa, a: &Self, b: &Self) -> u32 {
         simd::hamming_with(isa, a, b)
@@ -233,10 +240,6 @@ impl<const W: usize> sealed::Sealed for [u64; W] {
         [0; W]
     }
 
-    fn is_finite(&self) -> bool {
-        true
-    }
-
     fn acc_zero() -> Vec<u64> {
         vec![0; 64 * W]
     }
@@ -258,22 +261,6 @@ impl<const W: usize> sealed::Sealed for [u64; W] {
                     *word |= 1 << bit;
                 }
             }
-        }
-        out
-    }
-
-    fn write_le(&self, out: &mut Vec<u8>) {
-        for w in self {
-            out.extend_from_slice(&w.to_le_bytes());
-        }
-    }
-
-    fn read_le(bytes: &[u8]) -> Self {
-        let mut out = [0u64; W];
-        for (w, chunk) in out.iter_mut().zip(bytes.chunks_exact(8)) {
-            let mut b = [0u8; 8];
-            b.copy_from_slice(chunk);
-            *w = u64::from_le_bytes(b);
         }
         out
     }
@@ -305,12 +292,33 @@ impl<const W: usize> Descriptor for [u64; W] {
     fn metric_distance(&self, other: &Self) -> f64 {
         f64::from(self.distance(other))
     }
+
+    const ELEMENT_BYTES: usize = 8;
+
+    fn is_finite(&self) -> bool {
+        true
+    }
+
+    fn write_le(&self, out: &mut Vec<u8>) {
+        for w in self {
+            out.extend_from_slice(&w.to_le_bytes());
+        }
+    }
+
+    fn read_le(bytes: &[u8]) -> Self {
+        let mut out = [0u64; W];
+        for (w, chunk) in out.iter_mut().zip(bytes.chunks_exact(8)) {
+            let mut b = [0u8; 8];
+            b.copy_from_slice(chunk);
+            *w = u64::from_le_bytes(b);
+        }
+        out
+    }
 }
 
 impl<const D: usize> sealed::Sealed for [f32; D] {
     type Dist = f32;
     type Acc = Vec<f64>;
-    const ELEM_BYTES: usize = 4;
 
     fn distance_isa(isa: Isa, a: &Self, b: &Self) -> f32 {
         simd::l2_squared_with(isa, a, b)
@@ -342,10 +350,6 @@ impl<const D: usize> sealed::Sealed for [f32; D] {
         [0.0; D]
     }
 
-    fn is_finite(&self) -> bool {
-        self.iter().all(|x| x.is_finite())
-    }
-
     fn acc_zero() -> Vec<f64> {
         vec![0.0; D]
     }
@@ -361,22 +365,6 @@ impl<const D: usize> sealed::Sealed for [f32; D] {
         let n = count as f64;
         for (o, s) in out.iter_mut().zip(acc) {
             *o = (s / n) as f32;
-        }
-        out
-    }
-
-    fn write_le(&self, out: &mut Vec<u8>) {
-        for v in self {
-            out.extend_from_slice(&v.to_le_bytes());
-        }
-    }
-
-    fn read_le(bytes: &[u8]) -> Self {
-        let mut out = [0f32; D];
-        for (v, chunk) in out.iter_mut().zip(bytes.chunks_exact(4)) {
-            let mut b = [0u8; 4];
-            b.copy_from_slice(chunk);
-            *v = f32::from_le_bytes(b);
         }
         out
     }
@@ -410,6 +398,28 @@ impl<const D: usize> Descriptor for [f32; D] {
     fn metric_distance(&self, other: &Self) -> f64 {
         f64::from(self.distance(other)).sqrt()
     }
+
+    const ELEMENT_BYTES: usize = 4;
+
+    fn is_finite(&self) -> bool {
+        self.iter().all(|x| x.is_finite())
+    }
+
+    fn write_le(&self, out: &mut Vec<u8>) {
+        for v in self {
+            out.extend_from_slice(&v.to_le_bytes());
+        }
+    }
+
+    fn read_le(bytes: &[u8]) -> Self {
+        let mut out = [0f32; D];
+        for (v, chunk) in out.iter_mut().zip(bytes.chunks_exact(4)) {
+            let mut b = [0u8; 4];
+            b.copy_from_slice(chunk);
+            *v = f32::from_le_bytes(b);
+        }
+        out
+    }
 }
 
 /// Packs an OpenCV-style binary descriptor (`8 W` bytes) into `[u64; W]`: byte `i` goes to
@@ -419,12 +429,12 @@ pub fn binary_from_bytes<const W: usize>(bytes: &[u8]) -> Option<[u64; W]> {
     if bytes.len() != 8 * W {
         return None;
     }
-    Some(<[u64; W] as sealed::Sealed>::read_le(bytes))
+    Some(<[u64; W] as Descriptor>::read_le(bytes))
 }
 
 /// The inverse of [`binary_from_bytes`]: the `8 W` bytes of a binary descriptor.
 pub fn binary_to_bytes<const W: usize>(descriptor: &[u64; W]) -> Vec<u8> {
     let mut out = Vec::with_capacity(8 * W);
-    sealed::Sealed::write_le(descriptor, &mut out);
+    descriptor.write_le(&mut out);
     out
 }

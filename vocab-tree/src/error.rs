@@ -64,24 +64,20 @@ pub enum VocabError {
     /// The instruction set asked for is not supported by this CPU.
     #[error("the instruction set {0:?} is not supported by this CPU")]
     UnsupportedIsa(crate::simd::Isa),
-    /// A vocabulary file could not be read or written.
-    #[error("I/O error on {}: {source}", path.display())]
-    Io {
-        /// The file.
-        path: PathBuf,
-        /// The underlying error.
-        source: std::io::Error,
-    },
+    /// A vocabulary file could not be read or written (missing, not a regular file, or the
+    /// operating system's error); names the file.
+    #[error(transparent)]
+    Io(#[from] ibc_camera_models::io::IoError),
     /// A vocabulary's bytes or text are not valid.
     #[error("invalid vocabulary file: {0}")]
-    File(#[from] FileError),
+    File(#[from] VocabFileError),
     /// A vocabulary file read from a path is not valid.
     #[error("invalid vocabulary file {}: {source}", path.display())]
     InvalidFile {
         /// The file.
         path: PathBuf,
         /// Why it was rejected.
-        source: FileError,
+        source: VocabFileError,
     },
 }
 
@@ -103,7 +99,7 @@ impl VocabError {
 /// Why a vocabulary file was rejected.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 #[non_exhaustive]
-pub enum FileError {
+pub enum VocabFileError {
     /// The file does not start with the format's magic bytes.
     #[error("not an ibc vocabulary file (bad magic bytes)")]
     BadMagic,

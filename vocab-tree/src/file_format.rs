@@ -28,12 +28,13 @@
 //! the whole file. Files are written atomically (a temporary file in the same folder, then a
 //! rename).
 
-use std::io::{Read, Write};
+use std::io::Read;
 use std::path::Path;
-use std::sync::atomic::{AtomicU64, Ordering};
+
+use ibc_camera_models::io::{IoError, open_regular, write_atomically};
 
 use crate::descriptor::{Descriptor, DescriptorKind};
-use crate::error::{FileError, Result, VocabError};
+use crate::error::{Result, VocabError, VocabFileError};
 use crate::scoring::Scoring;
 use crate::vocabulary::{Vocabulary, check_tree};
 use crate::weighting::Weighting;
@@ -59,36 +60,8 @@ fn u32_at(b: &[u8], at: usize) -> u32 {
     u32::from_le_bytes([b[at], b[at + 1], b[at + 2], b[at + 3]])
 }
 
-/// Opens `path` for reading if it is a regular file (checked before the open, which would
-/// block on a FIFO, and again on the open file).
-pub(crate) fn open_regular(path: &Path) -> Result<std::fs::File> {
-    let not_regular = || {
-        io_error(
-            path,
-            std::io::Error::new(
-                std::io::ErrorKind::InvalidInput,
-                "not a regular file (a FIFO, a device or a folder)",
-            ),
-        )
-    };
-    if !std::fs::metadata(path)
-        .map_err(|e| io_error(path, e))?
-        .is_file()
-    {
-        return Err(not_regular());
-    }
-    let file = std::fs::File::open(path).map_err(|e| io_error(path, e))?;
-    if !file.metadata().map_err(|e| io_error(path, e))?.is_file() {
-        return Err(not_regular());
-    }
-    Ok(file)
-}
-
 fn io_error(path: &Path, source: std::io::Error) -> VocabError {
-    VocabError::Io {
-        path: path.to_path_buf(),
-        source,
-    }
+    IoError::os(path, source).into()
 }
 
 /// Streams the file body through a small buffer, hashing every byte read.
@@ -132,46 +105,17 @@ fn decode_f32(c: &[u8]) -> f32 {
     f32::from_le_bytes([c[0], c[1], c[2], c[3]])
 }
 
-/// Writes `bytes` to `path` atomically: a temporary file in the same folder, synced, then
-/// renamed over `path`.
-pub(crate) fn write_atomically(path: &Path, bytes: &[u8]) -> Result<()> {
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    };
-    let name = path
-        .file_name()
-        .map_or_else(|| "vocabulary".into(), |n| n.to_string_lossy());
-    let n = NEXT_TEMPORARY.fetch_add(1, Ordering::Relaxed);
-    let tmp = dir.join(format!(".{name}.tmp-{}-{n}", std::process::id()));
-    // Created as any program creates files (mode 0666 less the umask), so other accounts can
-    // read the vocabulary; temporary-file libraries use 0600.
-    let written = (|| {
-        let mut file = std::fs::OpenOptions::new()
-            .write(true)
-            .create_new(true)
-            .open(&tmp)?;
-        file.write_all(bytes)?;
-        file.sync_all()?;
-        std::fs::rename(&tmp, path)
-    })();
-    written.map_err(|e| {
-        // Best effort: the error returned is the write's.
-        let _ = std::fs::remove_file(&tmp);
-        io_error(path, e)
-    })
-}
-
-/// Distinguishes the temporary files of one process.
-static NEXT_TEMPORARY: AtomicU64 = AtomicU64::new(0);
-
 impl<D: Descriptor> Vocabulary<D> {
     /// The vocabulary in the file format (see the [module docs](crate::file_format)).
     pub fn to_bytes(&self) -> Vec<u8> {
         let n = self.centroids.len();
         let w = self.word_weights.len();
-        let len =
-            HEADER_LEN + 4 * (n + 1) + 4 * n + 4 * w + n * D::WIDTH * D::ELEM_BYTES + CHECKSUM_LEN;
+        let len = HEADER_LEN
+            + 4 * (n + 1)
+            + 4 * n
+            + 4 * w
+            + n * D::WIDTH * D::ELEMENT_BYTES
+            + CHECKSUM_LEN;
         let mut out = Vec::with_capacity(len);
         out.extend_from_slice(&MAGIC);
         out.extend_from_slice(&FORMAT_VERSION.to_le_bytes());
@@ -207,7 +151,7 @@ impl<D: Descriptor> Vocabulary<D> {
 
     /// Reads a vocabulary from the bytes of a file, checking everything (see the
     /// [module docs](crate::file_format)); every kind of damage is a typed
-    /// [`FileError`] or an [`VocabError::InvalidTree`].
+    /// [`VocabFileError`] or an [`VocabError::InvalidTree`].
     pub fn from_bytes(bytes: &[u8]) -> Result<Self> {
         Self::read_from(bytes, bytes.len() as u64, Path::new("<bytes>"))
     }
@@ -217,10 +161,10 @@ impl<D: Descriptor> Vocabulary<D> {
         let mut header = [0u8; HEADER_LEN];
         let got = read_up_to(&mut source, &mut header).map_err(|e| io_error(path, e))?;
         if got < MAGIC.len() || header[..MAGIC.len()] != MAGIC {
-            return Err(FileError::BadMagic.into());
+            return Err(VocabFileError::BadMagic.into());
         }
         if got < HEADER_LEN {
-            return Err(FileError::Truncated {
+            return Err(VocabFileError::Truncated {
                 expected: (HEADER_LEN + CHECKSUM_LEN) as u64,
                 found: len,
             }
@@ -228,13 +172,14 @@ impl<D: Descriptor> Vocabulary<D> {
         }
         let version = u32_at(&header, 8);
         if version != FORMAT_VERSION {
-            return Err(FileError::UnsupportedVersion {
+            return Err(VocabFileError::UnsupportedVersion {
                 found: version,
                 supported: FORMAT_VERSION,
             }
             .into());
         }
-        let field = |field: &'static str, value: u64| FileError::InvalidHeader { field, value };
+        let field =
+            |field: &'static str, value: u64| VocabFileError::InvalidHeader { field, value };
         let kind = DescriptorKind::from_code(header[12])
             .ok_or_else(|| field("descriptor kind", header[12].into()))?;
         let weighting = Weighting::from_code(header[13])
@@ -251,7 +196,7 @@ impl<D: Descriptor> Vocabulary<D> {
             return Err(field("reserved word 36", u32_at(&header, 36).into()).into());
         }
         if kind != D::KIND || width as usize != D::WIDTH {
-            return Err(FileError::DescriptorMismatch {
+            return Err(VocabFileError::DescriptorMismatch {
                 expected_kind: D::KIND,
                 expected_width: D::WIDTH as u32,
                 found_kind: kind,
@@ -259,7 +204,7 @@ impl<D: Descriptor> Vocabulary<D> {
             }
             .into());
         }
-        let desc_bytes = D::WIDTH * D::ELEM_BYTES;
+        let desc_bytes = D::WIDTH * D::ELEMENT_BYTES;
         let (n64, w64) = (u64::from(n), u64::from(w));
         let expected = (HEADER_LEN + CHECKSUM_LEN) as u64
             + 4 * (n64 + 1)
@@ -267,14 +212,14 @@ impl<D: Descriptor> Vocabulary<D> {
             + 4 * w64
             + n64 * desc_bytes as u64;
         if len < expected {
-            return Err(FileError::Truncated {
+            return Err(VocabFileError::Truncated {
                 expected,
                 found: len,
             }
             .into());
         }
         if len > expected {
-            return Err(FileError::TrailingBytes {
+            return Err(VocabFileError::TrailingBytes {
                 extra: len - expected,
             }
             .into());
@@ -300,7 +245,7 @@ impl<D: Descriptor> Vocabulary<D> {
         let stored = u64::from_le_bytes(stored);
         let computed = reader.hash.digest();
         if stored != computed {
-            return Err(FileError::ChecksumMismatch { stored, computed }.into());
+            return Err(VocabFileError::ChecksumMismatch { stored, computed }.into());
         }
         check_tree(branching, depth, &child_start, n)?;
         Self::from_checked_tree(
@@ -318,7 +263,7 @@ impl<D: Descriptor> Vocabulary<D> {
     /// Writes the vocabulary to `path` atomically (a temporary file in the same folder, then a
     /// rename), so a reader never sees a half-written file.
     pub fn save(&self, path: impl AsRef<Path>) -> Result<()> {
-        write_atomically(path.as_ref(), &self.to_bytes())
+        Ok(write_atomically(path.as_ref(), &self.to_bytes())?)
     }
 
     /// Reads a vocabulary written by [`save`](Self::save) (see
@@ -328,8 +273,7 @@ impl<D: Descriptor> Vocabulary<D> {
     /// error names it ([`VocabError::InvalidFile`]).
     pub fn load(path: impl AsRef<Path>) -> Result<Self> {
         let path = path.as_ref();
-        let file = open_regular(path)?;
-        let len = file.metadata().map_err(|e| io_error(path, e))?.len();
+        let (file, len) = open_regular(path)?;
         Self::read_from(file, len, path).map_err(|e| e.in_file(path))
     }
 }

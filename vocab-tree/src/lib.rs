@@ -18,7 +18,7 @@ mod weighting;
 pub use bow::{BowVector, FeatureVector, NodeId, WordId};
 pub use database::{Database, ImageId, QueryOptions, QueryResult};
 pub use descriptor::{Descriptor, DescriptorKind, binary_from_bytes, binary_to_bytes};
-pub use error::{FileError, Result, VocabError};
+pub use error::{Result, VocabError, VocabFileError};
 pub use matching::{
     Match, MatchOptions, MatchScratch, match_brute_force, match_by_nodes, match_sets,
 };
@@ -45,3 +45,10 @@ mod send_sync {
         check::<crate::Database<crate::Surf64Descriptor>>();
     }
 }
+
+/// Marks an options struct as open to new fields: outside this crate it can only be built
+/// with `..Default::default()` (`MatchOptions { ratio: 0.8, ..Default::default() }`), so
+/// adding a field is not a breaking change (faer's pattern).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[doc(hidden)]
+pub struct NonExhaustive(pub(crate) ());

@@ -22,7 +22,6 @@ use crate::simd::Isa;
 /// Options of the matching functions. Defaults: CamOdoCal's ratio 0.7 with the mutual
 /// check, no absolute distance bound.
 #[derive(Debug, Clone, Copy, PartialEq)]
-#[non_exhaustive]
 pub struct MatchOptions {
     /// The distance ratio `d₁ / d₂` must be below this, in `(0, 1]`.
     pub ratio: f64,
@@ -30,6 +29,9 @@ pub struct MatchOptions {
     pub mutual_check: bool,
     /// Keep a match only when its metric distance is at most this.
     pub max_distance: Option<f64>,
+    /// Keeps the struct open to new fields: build it with `..Default::default()`.
+    #[doc(hidden)]
+    pub non_exhaustive: crate::NonExhaustive,
 }
 
 impl Default for MatchOptions {
@@ -38,6 +40,7 @@ impl Default for MatchOptions {
             ratio: 0.7,
             mutual_check: true,
             max_distance: None,
+            non_exhaustive: crate::NonExhaustive(()),
         }
     }
 }

@@ -29,7 +29,6 @@ use crate::weighting::Weighting;
 /// TF-IDF weighting and L1 scoring; at most 10 Lloyd iterations per node (DBoW2 iterates until
 /// convergence without a bound, which can loop on float descriptors).
 #[derive(Debug, Clone, PartialEq)]
-#[non_exhaustive]
 pub struct TrainingOptions {
     /// Branching factor `k` (`2 ..= 65536`).
     pub branching: u32,
@@ -43,6 +42,9 @@ pub struct TrainingOptions {
     pub max_iterations: u32,
     /// Seed of the random number streams.
     pub seed: u64,
+    /// Keeps the struct open to new fields: build it with `..Default::default()`.
+    #[doc(hidden)]
+    pub non_exhaustive: crate::NonExhaustive,
 }
 
 impl Default for TrainingOptions {
@@ -54,6 +56,7 @@ impl Default for TrainingOptions {
             scoring: Scoring::L1,
             max_iterations: 10,
             seed: 0,
+            non_exhaustive: crate::NonExhaustive(()),
         }
     }
 }

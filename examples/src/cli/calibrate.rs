@@ -7,7 +7,7 @@ use ibc_camera_models::Rig;
 use ibc_pipeline::calib::{Calibration, Status, calibrate_with};
 use ibc_pipeline::data::GroundTruth;
 use ibc_pipeline::data::io::{
-    DescriptorLayout, FileDescriptor, read_descriptor_layout, read_log, read_map, read_truth,
+    DescriptorLayout, read_descriptor_layout, read_log, read_map, read_truth,
 };
 use ibc_pipeline::report::{Report, output_names, text_table, write_outputs};
 use ibc_vocab_tree::{Descriptor, DescriptorKind, Vocabulary};
@@ -71,10 +71,7 @@ pub fn finish(
 }
 
 /// The calibration with descriptors of type `D`.
-fn calibrate_files<D: Descriptor + FileDescriptor>(
-    args: &CalibrateArgs,
-    bars: &Bars,
-) -> Result<Outcome, CliError> {
+fn calibrate_files<D: Descriptor>(args: &CalibrateArgs, bars: &Bars) -> Result<Outcome, CliError> {
     let rig = read_cameras(&args.cameras)?;
     let truth = args
         .truth

@@ -158,13 +158,14 @@ mod truth_json;
 use std::path::Path;
 
 use ibc_camera_models::io::IoError;
+use ibc_vocab_tree::Descriptor;
 
 pub use atomic::{
     STAGING_PREFIX, STALE_STAGING_SECONDS, StagedFiles, remove_staged_outputs, write_atomically,
 };
 pub(crate) use bytes::unit_quaternion;
 pub use checksum::xxh64;
-pub use descriptor::FileDescriptor;
+pub use descriptor::descriptor_layout;
 pub use error::{DataFileError, DescriptorLayout, FormatError};
 
 /// The largest text input (ground truth, corner file): 256 MiB. A ground truth holds about
@@ -217,7 +218,7 @@ fn format_error(path: &Path) -> impl Fn(FormatError) -> DataFileError + '_ {
 /// # Errors
 /// [`DataFileError::Io`] if the file cannot be read, [`DataFileError::Format`] naming the
 /// problem if it is not a valid map with descriptors of type `D`.
-pub fn read_map<D: FileDescriptor>(path: impl AsRef<Path>) -> Result<Map<D>, DataFileError> {
+pub fn read_map<D: Descriptor>(path: impl AsRef<Path>) -> Result<Map<D>, DataFileError> {
     let path = path.as_ref();
     map_from_bytes(&read_bytes(path)?).map_err(format_error(path))
 }
@@ -227,10 +228,7 @@ pub fn read_map<D: FileDescriptor>(path: impl AsRef<Path>) -> Result<Map<D>, Dat
 /// # Errors
 /// [`DataFileError::Format`] if the map is invalid (see [`map_to_bytes`]),
 /// [`DataFileError::Io`] if the file cannot be written.
-pub fn write_map<D: FileDescriptor>(
-    path: impl AsRef<Path>,
-    map: &Map<D>,
-) -> Result<(), DataFileError> {
+pub fn write_map<D: Descriptor>(path: impl AsRef<Path>, map: &Map<D>) -> Result<(), DataFileError> {
     let path = path.as_ref();
     write_atomically(path, &map_to_bytes(map).map_err(format_error(path))?)
 }
@@ -240,7 +238,7 @@ pub fn write_map<D: FileDescriptor>(
 /// # Errors
 /// [`DataFileError::Io`] if the file cannot be read, [`DataFileError::Format`] naming the
 /// problem if it is not a valid rig log with descriptors of type `D`.
-pub fn read_log<D: FileDescriptor>(path: impl AsRef<Path>) -> Result<RigLog<D>, DataFileError> {
+pub fn read_log<D: Descriptor>(path: impl AsRef<Path>) -> Result<RigLog<D>, DataFileError> {
     let path = path.as_ref();
     log_from_bytes(&read_bytes(path)?).map_err(format_error(path))
 }
@@ -250,7 +248,7 @@ pub fn read_log<D: FileDescriptor>(path: impl AsRef<Path>) -> Result<RigLog<D>, 
 /// # Errors
 /// [`DataFileError::Format`] if the log is invalid (see [`log_to_bytes`]),
 /// [`DataFileError::Io`] if the file cannot be written.
-pub fn write_log<D: FileDescriptor>(
+pub fn write_log<D: Descriptor>(
     path: impl AsRef<Path>,
     log: &RigLog<D>,
 ) -> Result<(), DataFileError> {

@@ -6,7 +6,9 @@ use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion};
 
 use super::FORMAT_VERSION;
 use super::checksum::xxh64;
-use super::descriptor::{FileDescriptor, kind_code, kind_from_code};
+use ibc_vocab_tree::{Descriptor, DescriptorKind};
+
+use super::descriptor::descriptor_layout;
 use super::error::{DescriptorLayout, FormatError, invalid};
 
 /// Bytes of the common header (magic to file length).
@@ -44,13 +46,13 @@ impl FileKind {
 }
 
 /// Starts a file: the common header with a placeholder length, patched by [`finish`].
-pub(crate) fn start<D: FileDescriptor>(kind: FileKind, capacity: usize) -> Vec<u8> {
+pub(crate) fn start<D: Descriptor>(kind: FileKind, capacity: usize) -> Vec<u8> {
     let mut out = Vec::with_capacity(capacity);
     out.extend_from_slice(&kind.magic());
     put_u32(&mut out, FORMAT_VERSION);
-    out.push(kind_code(D::KIND));
+    out.push(D::KIND.code());
     out.extend_from_slice(&[0; 3]);
-    put_u32(&mut out, D::layout().width);
+    put_u32(&mut out, descriptor_layout::<D>().width);
     put_u32(&mut out, 0);
     put_u64(&mut out, 0);
     out
@@ -68,7 +70,7 @@ pub(crate) fn finish(mut out: Vec<u8>) -> Vec<u8> {
 /// Checks everything about a file that does not depend on its kind's counts: length,
 /// magic, version, descriptor layout, declared length, checksum. `minimum` is the length of
 /// an empty file of the kind.
-pub(crate) fn check_envelope<D: FileDescriptor>(
+pub(crate) fn check_envelope<D: Descriptor>(
     bytes: &[u8],
     kind: FileKind,
     minimum: usize,
@@ -107,10 +109,10 @@ pub(crate) fn check_envelope<D: FileDescriptor>(
     }
     let header = read_common_header(bytes)?;
     let found = header.layout;
-    if found != D::layout() {
+    if found != descriptor_layout::<D>() {
         return Err(FormatError::DescriptorMismatch {
             found,
-            expected: D::layout(),
+            expected: descriptor_layout::<D>(),
         });
     }
     if header.declared != actual {
@@ -156,7 +158,8 @@ fn read_common_header(bytes: &[u8]) -> Result<CommonHeader, FormatError> {
     let width = r.u32();
     let reserved2 = r.u32() == 0;
     let declared = r.u64();
-    let kind = kind_from_code(code).ok_or(FormatError::UnknownDescriptorKind { code })?;
+    let kind =
+        DescriptorKind::from_code(code).ok_or(FormatError::UnknownDescriptorKind { code })?;
     Ok(CommonHeader {
         layout: DescriptorLayout { kind, width },
         declared,

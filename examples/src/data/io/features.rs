@@ -5,9 +5,9 @@
 use nalgebra::Vector2;
 
 use super::bytes::put_f64;
-use super::descriptor::FileDescriptor;
 use super::error::{FormatError, invalid};
 use crate::data::ImageFeatures;
+use ibc_vocab_tree::Descriptor;
 
 /// Little-endian `f64` from exactly eight bytes.
 #[inline(always)]
@@ -18,8 +18,8 @@ fn le_f64(b: &[u8]) -> f64 {
 }
 
 /// Appends the keypoint section (`x`, `y` as `f64`, 16 bytes per feature) and then the
-/// descriptor section ([`FileDescriptor::BYTES`] per feature) of `images`, in order.
-pub(crate) fn put_feature_sections<'a, D: FileDescriptor + 'a>(
+/// descriptor section ([`Descriptor::BYTES`] per feature) of `images`, in order.
+pub(crate) fn put_feature_sections<'a, D: Descriptor + 'a>(
     out: &mut Vec<u8>,
     images: impl Iterator<Item = &'a ImageFeatures<D>> + Clone,
 ) {
@@ -46,9 +46,9 @@ pub(crate) fn starts(counts: &[usize]) -> Vec<usize> {
 }
 
 /// Decodes one image's features from its keypoint bytes (16 per feature) and descriptor bytes
-/// ([`FileDescriptor::BYTES`] per feature), whose lengths the caller sliced to match.
+/// ([`Descriptor::BYTES`] per feature), whose lengths the caller sliced to match.
 /// `what` names the image in errors (`"map image 3"`).
-pub(crate) fn decode_features<D: FileDescriptor>(
+pub(crate) fn decode_features<D: Descriptor>(
     keypoints: &[u8],
     descriptors: &[u8],
     what: &dyn Fn() -> String,

@@ -7,11 +7,11 @@ use super::bytes::{
     CHECKSUM_LEN, COMMON_HEADER_LEN, Cursor, FileKind, POSE_LEN, buffer_len, check_envelope,
     check_pose, count_u32, finish, layout_len, put_f64, put_pose, put_u32, put_u64, start,
 };
-use super::descriptor::FileDescriptor;
 use super::error::{FormatError, invalid};
 use super::features::{decode_features, put_feature_sections, starts};
 use super::map_format::check_features;
 use crate::data::{Frame, ImageFeatures, OdometryKind, RigLog};
+use ibc_vocab_tree::Descriptor;
 
 /// Bytes of the log header (common header, counts, odometry kind).
 pub(crate) const LOG_HEADER_LEN: usize = COMMON_HEADER_LEN + 24;
@@ -67,7 +67,7 @@ fn check_name(name: &str, names_before: &[String]) -> Option<String> {
 }
 
 /// Checks a log before writing it, so that every file written reads back.
-fn check_log<D: FileDescriptor>(log: &RigLog<D>) -> Result<(), FormatError> {
+fn check_log<D: Descriptor>(log: &RigLog<D>) -> Result<(), FormatError> {
     let cameras = log.camera_names.len();
     if cameras == 0 {
         return Err(invalid("a rig log needs at least one camera name"));
@@ -134,7 +134,7 @@ fn check_timestamp(t: f64, last: f64, i: usize) -> Result<(), FormatError> {
 /// camera names, a frame with another number of images than cameras, time stamps out of
 /// order, odometry poses in a log whose odometry kind is none, non-finite values, a count
 /// past `u32`.
-pub fn log_to_bytes<D: FileDescriptor>(log: &RigLog<D>) -> Result<Vec<u8>, FormatError> {
+pub fn log_to_bytes<D: Descriptor>(log: &RigLog<D>) -> Result<Vec<u8>, FormatError> {
     check_log(log)?;
     let features: usize = log
         .frames
@@ -219,7 +219,7 @@ fn read_names(bytes: &[u8], cameras: u32) -> Result<(Vec<String>, usize), Format
 ///
 /// # Errors
 /// [`FormatError`] naming the first problem found.
-pub fn log_from_bytes<D: FileDescriptor>(bytes: &[u8]) -> Result<RigLog<D>, FormatError> {
+pub fn log_from_bytes<D: Descriptor>(bytes: &[u8]) -> Result<RigLog<D>, FormatError> {
     check_envelope::<D>(bytes, FileKind::Log, LOG_HEADER_LEN + CHECKSUM_LEN)?;
     let mut header = Cursor::new(&bytes[COMMON_HEADER_LEN..LOG_HEADER_LEN]);
     let n_cameras = header.u32();

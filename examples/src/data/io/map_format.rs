@@ -8,10 +8,10 @@ use super::bytes::{
     CHECKSUM_LEN, COMMON_HEADER_LEN, Cursor, FileKind, POSE_LEN, buffer_len, check_envelope,
     check_pose, count_u32, finish, layout_len, put_f64, put_pose, put_u32, put_u64, start,
 };
-use super::descriptor::FileDescriptor;
 use super::error::{FormatError, invalid};
 use super::features::{decode_features, put_feature_sections, starts};
 use crate::data::{ImageFeatures, Map, MapImage};
+use ibc_vocab_tree::Descriptor;
 
 /// Bytes of the map header (common header and counts).
 pub(crate) const MAP_HEADER_LEN: usize = COMMON_HEADER_LEN + 16;
@@ -31,7 +31,7 @@ fn map_len(points: u64, images: u64, features: u64, desc_bytes: u64) -> Option<u
 }
 
 /// Checks a map before writing it, so that every file written reads back.
-fn check_map<D: FileDescriptor>(map: &Map<D>) -> Result<(), FormatError> {
+fn check_map<D: Descriptor>(map: &Map<D>) -> Result<(), FormatError> {
     let n_points = count_u32(map.points.len(), "map points")?;
     if n_points == NO_POINT {
         return Err(invalid("a map holds at most 2^32 - 2 points"));
@@ -76,7 +76,7 @@ fn check_map<D: FileDescriptor>(map: &Map<D>) -> Result<(), FormatError> {
 }
 
 /// Checks keypoints and descriptors of one image before writing: finite values.
-pub(crate) fn check_features<D: FileDescriptor>(
+pub(crate) fn check_features<D: Descriptor>(
     f: &ImageFeatures<D>,
     what: &dyn Fn() -> String,
 ) -> Result<(), FormatError> {
@@ -101,7 +101,7 @@ pub(crate) fn check_features<D: FileDescriptor>(
 /// # Errors
 /// [`FormatError::Invalid`] for a map that would not read back: lengths that disagree within
 /// an image, a point id past the points, a non-finite value, a count past `u32`.
-pub fn map_to_bytes<D: FileDescriptor>(map: &Map<D>) -> Result<Vec<u8>, FormatError> {
+pub fn map_to_bytes<D: Descriptor>(map: &Map<D>) -> Result<Vec<u8>, FormatError> {
     check_map(map)?;
     let features: usize = map.images.iter().map(|i| i.features.len()).sum();
     let len = buffer_len(
@@ -140,7 +140,7 @@ pub fn map_to_bytes<D: FileDescriptor>(map: &Map<D>) -> Result<Vec<u8>, FormatEr
 ///
 /// # Errors
 /// [`FormatError`] naming the first problem found.
-pub fn map_from_bytes<D: FileDescriptor>(bytes: &[u8]) -> Result<Map<D>, FormatError> {
+pub fn map_from_bytes<D: Descriptor>(bytes: &[u8]) -> Result<Map<D>, FormatError> {
     check_envelope::<D>(bytes, FileKind::Map, MAP_HEADER_LEN + CHECKSUM_LEN)?;
     let mut header = Cursor::new(&bytes[COMMON_HEADER_LEN..MAP_HEADER_LEN]);
     let n_points = header.u32();
