@@ -3,6 +3,9 @@
 
 use thiserror::Error;
 
+/// `Result` with [`PnpError`] as the default error.
+pub type Result<T, E = PnpError> = std::result::Result<T, E>;
+
 /// Why a set of 2D-3D correspondences has no unique answer.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[non_exhaustive]
@@ -123,10 +126,15 @@ pub enum PnpError {
         /// What was wrong with it.
         reason: String,
     },
-    /// The camera cannot unproject a pixel (feature `camera-models`).
-    #[cfg(feature = "camera-models")]
+    /// The camera cannot unproject a pixel (the one given to [`crate::angle_from_pixels_at`]).
     #[error("the camera cannot unproject the pixel: {0}")]
     Unprojection(#[from] ibc_camera_models::UnprojectionError),
+    /// A robust loss's scale is not finite and positive.
+    #[error("the scale of the robust loss must be finite and positive, got {scale}")]
+    InvalidLossScale {
+        /// The scale given.
+        scale: f64,
+    },
     /// A computation produced a non-finite number or a singular system.
     #[error("numerical failure: {0}")]
     Numerical(&'static str),
