@@ -126,7 +126,8 @@ pub enum PnpError {
         /// What was wrong with it.
         reason: String,
     },
-    /// The camera cannot unproject a pixel (the one given to [`crate::angle_from_pixels_at`]).
+    /// The camera cannot unproject a pixel, in a function of one pixel: the one given to
+    /// [`crate::angle_from_pixels_at`] or [`crate::bearing_information`].
     #[error("the camera cannot unproject the pixel: {0}")]
     Unprojection(#[from] ibc_camera_models::UnprojectionError),
     /// A robust loss's scale is not finite and positive.
@@ -134,6 +135,15 @@ pub enum PnpError {
     InvalidLossScale {
         /// The scale given.
         scale: f64,
+    },
+    /// The information of a bearing is undefined: the camera's d ray / d pixel is singular
+    /// or not finite at the pixel.
+    #[error("d ray / d pixel of the camera is singular or not finite at pixel ({u}, {v})")]
+    SingularUnprojectionJacobian {
+        /// The pixel's first coordinate.
+        u: f64,
+        /// The pixel's second coordinate.
+        v: f64,
     },
     /// A computation produced a non-finite number or a singular system.
     #[error("numerical failure: {0}")]

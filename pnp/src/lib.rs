@@ -5,6 +5,7 @@ mod epnp;
 mod epnp_sums;
 mod error;
 mod geometry;
+mod information;
 mod loss;
 mod p3p;
 mod ransac;
@@ -23,6 +24,7 @@ pub use epnp::{
     EPNP_MIN_POINTS, EpnpOptions, NEAR_PLANAR_FLATNESS, PLANAR_FLATNESS, epnp, epnp_with,
 };
 pub use error::{Degeneracy, PnpError, Result};
+pub use information::{bearing_information, pinhole_information};
 pub use loss::RobustLoss;
 pub use p3p::{P3P_MAX_SOLUTIONS, P3pSolutions, p3p};
 pub use ransac::{
@@ -30,8 +32,7 @@ pub use ransac::{
     RansacOptions, RobustPose, robust_pose,
 };
 pub use refine::{
-    REFINE_MIN_POINTS, RefineOptions, RefinedPose, pinhole_information, refine_pose,
-    refine_pose_weighted,
+    REFINE_MIN_POINTS, RefineOptions, RefinedPose, refine_pose, refine_pose_weighted,
 };
 pub use threshold::angle_from_pixels;
 pub use validate::{

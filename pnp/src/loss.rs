@@ -22,7 +22,8 @@ use crate::error::{PnpError, Result};
 /// [`crate::refine_pose`] (turn pixels into an angle with [`crate::angle_from_pixels`] or
 /// [`crate::angle_from_pixels_at`]); for [`crate::refine_pose_weighted`], whose residual is
 /// whitened by the information matrix, pixels when the information is that of one-pixel
-/// noise ([`crate::pinhole_information`]); pixels for a reprojection error.
+/// noise (`sigma_px = 1` in [`crate::bearing_information`]); pixels for a reprojection
+/// error.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 #[non_exhaustive]
 pub enum RobustLoss {

@@ -116,8 +116,8 @@ pub fn refine_pose(
 /// (symmetric positive semi-definite, in bearing space): the cost is
 /// `sum rho(r_i^T information[i] r_i)`. With the information of the camera's pixel noise
 /// (the pseudo-inverse of the bearing's covariance `J J^T sigma^2`, `J = d ray / d pixel`),
-/// this is the maximum-likelihood pose under Gaussian pixel noise; [`pinhole_information`]
-/// gives it for a pinhole camera.
+/// this is the maximum-likelihood pose under Gaussian pixel noise;
+/// [`crate::bearing_information`] gives it for any camera model.
 ///
 /// # Errors
 /// Those of [`refine_pose`], and [`PnpError::InvalidOption`] (`information`) if there is not
@@ -164,26 +164,6 @@ fn refine_checked(
     check_initial(initial)?;
     let all: Vec<usize> = (0..bearings.len()).collect();
     refine_subset(bearings, points, &all, information, initial, options)
-}
-
-/// The information matrix of a bearing of a pinhole camera (focal length `focal_px` pixels
-/// in both axes) under isotropic pixel noise of one pixel: `J^T J` with `J` the Jacobian of
-/// `focal_px * (x / z, y / z)` at the bearing. Zero for a bearing with `z <= 0`, which a
-/// pinhole cannot see.
-pub fn pinhole_information(bearing: &Vector3<f64>, focal_px: f64) -> Matrix3<f64> {
-    let z = bearing.z;
-    if z.is_nan() || z <= 0.0 {
-        return Matrix3::zeros();
-    }
-    let jacobian = nalgebra::Matrix2x3::new(
-        1.0 / z,
-        0.0,
-        -bearing.x / (z * z),
-        0.0,
-        1.0 / z,
-        -bearing.y / (z * z),
-    ) * focal_px;
-    jacobian.transpose() * jacobian
 }
 
 fn check_initial(initial: &Isometry3<f64>) -> Result<()> {
