@@ -126,8 +126,10 @@ pub enum PnpError {
         /// What was wrong with it.
         reason: String,
     },
-    /// The camera cannot unproject a pixel, in a function of one pixel: the one given to
-    /// [`crate::angle_from_pixels_at`] or [`crate::bearing_information`].
+    /// The camera cannot unproject a pixel, in a function of one pixel: the principal point
+    /// for [`crate::angle_from_pixels_at`] and [`crate::absolute_pose`] (which counts the
+    /// correspondences whose pixel cannot be unprojected as outliers instead), the pixel of
+    /// [`crate::bearing_information`].
     #[error("the camera cannot unproject the pixel: {0}")]
     Unprojection(#[from] ibc_camera_models::UnprojectionError),
     /// A robust loss's scale is not finite and positive.
@@ -135,6 +137,33 @@ pub enum PnpError {
     InvalidLossScale {
         /// The scale given.
         scale: f64,
+    },
+    /// The pixel and world-point slices of [`crate::absolute_pose`] differ in length.
+    #[error("{pixels} pixels but {points} world points: they must pair up one to one")]
+    PixelLengthMismatch {
+        /// Number of pixels given.
+        pixels: usize,
+        /// Number of world points given.
+        points: usize,
+    },
+    /// A pixel has a NaN or infinite coordinate.
+    #[error("pixel {index} has a non-finite coordinate")]
+    NonFinitePixel {
+        /// Index of the offending pixel.
+        index: usize,
+    },
+    /// Too few pixels of [`crate::absolute_pose`] could be unprojected by the camera to
+    /// determine a pose.
+    #[error(
+        "only {unprojected} of {total} pixels could be unprojected by the camera, fewer than the {needed} needed"
+    )]
+    TooFewUnprojected {
+        /// Pixels the camera unprojected.
+        unprojected: usize,
+        /// The minimum number of correspondences.
+        needed: usize,
+        /// Number of pixels given.
+        total: usize,
     },
     /// The information of a bearing is undefined: the camera's d ray / d pixel is singular
     /// or not finite at the pixel.

@@ -1,5 +1,6 @@
 #![doc = include_str!("../README.md")]
 
+mod absolute_pose;
 mod camera_threshold;
 mod epnp;
 mod epnp_sums;
@@ -19,6 +20,10 @@ mod validate;
 /// callers can use the very version it was built with.
 pub use nalgebra;
 
+pub use absolute_pose::{
+    ABSOLUTE_POSE_MIN_POINTS, AbsolutePose, AbsolutePoseOptions, DEFAULT_MAX_ERROR_PX,
+    absolute_pose,
+};
 pub use camera_threshold::angle_from_pixels_at;
 pub use epnp::{
     EPNP_MIN_POINTS, EpnpOptions, NEAR_PLANAR_FLATNESS, PLANAR_FLATNESS, epnp, epnp_with,
