@@ -118,8 +118,10 @@ fn scoring_pass(scene: &Scene, pose: &Isometry3<f64>, tan2: f64) -> usize {
 
 fn bench_epnp(c: &mut Criterion) {
     let mut group = c.benchmark_group("epnp");
-    let mut paper = EpnpOptions::default();
-    paper.depth_reweighting = false;
+    let paper = EpnpOptions {
+        depth_reweighting: false,
+        ..Default::default()
+    };
     for n in [6usize, 100] {
         let s = scene(n, 0, n as u64);
         group.bench_with_input(BenchmarkId::new("default", n), &s, |b, s| {
@@ -155,8 +157,10 @@ fn bench_robust(c: &mut Criterion) {
     group.sample_size(20);
     let threshold = angle_from_pixels(3.0, FOCAL).unwrap();
     let tan2 = threshold.tan().powi(2);
-    let mut options = RansacOptions::default();
-    options.threshold = threshold;
+    let options = RansacOptions {
+        threshold,
+        ..Default::default()
+    };
     for (n, outlier_ratio) in [(200usize, 0.5), (500, 0.8)] {
         let s = scene(n, (outlier_ratio * n as f64) as usize, 7 + n as u64);
         let label = format!("n{n}_outliers{}", (outlier_ratio * 100.0) as usize);

@@ -72,8 +72,10 @@ fn main() {
     match solver {
         "epnp" | "epnp-single-pass" => {
             let (bearings, points) = scene(n);
-            let mut options = EpnpOptions::default();
-            options.depth_reweighting = solver == "epnp";
+            let options = EpnpOptions {
+                depth_reweighting: solver == "epnp",
+                ..Default::default()
+            };
             for _ in 0..calls {
                 let pose = epnp_with(black_box(&bearings), black_box(&points), &options).unwrap();
                 checksum += pose.translation.vector.x;

@@ -1,4 +1,4 @@
-//! Pixel thresholds as angles for an `ibc-camera-models` camera (feature `camera-models`).
+//! Pixel thresholds as angles for an `ibc-camera-models` camera.
 //!
 //! A pixel spans different angles across a fisheye image and in different directions at one
 //! pixel. The angle returned is the largest that `pixels` pixels span at the given pixel:
@@ -10,7 +10,7 @@
 use ibc_camera_models::CameraModel;
 use nalgebra::{Vector2, Vector3};
 
-use crate::error::PnpError;
+use crate::error::Result;
 use crate::threshold::check_positive;
 
 /// The angle, in radians, that `pixels` pixels span at `pixel` of `camera`, in the direction
@@ -21,13 +21,14 @@ use crate::threshold::check_positive;
 /// image border gives the angle where the lens is most compressed.
 ///
 /// # Errors
-/// [`PnpError::InvalidOption`] if `pixels` is not finite and positive,
-/// [`PnpError::Unprojection`] if the camera cannot unproject `pixel`.
+/// [`PnpError::InvalidOption`](crate::PnpError::InvalidOption) if `pixels` is not finite and
+/// positive, [`PnpError::Unprojection`](crate::PnpError::Unprojection) if the camera cannot
+/// unproject `pixel`.
 pub fn angle_from_pixels_at<C: CameraModel + ?Sized>(
     camera: &C,
     pixel: &Vector2<f64>,
     pixels: f64,
-) -> Result<f64, PnpError> {
+) -> Result<f64> {
     check_positive("pixels", pixels)?;
     let (ray, jacobian) = camera.unproject_with_pixel_jacobian(pixel)?;
     let gram = jacobian.transpose() * jacobian;
@@ -56,6 +57,7 @@ fn angle_between(a: &Vector3<f64>, b: &Vector3<f64>) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::PnpError;
     use ibc_camera_models::{KannalaBrandt, PinholeRadtan};
 
     #[test]

@@ -36,8 +36,9 @@
 
 use nalgebra::{Isometry3, Matrix3, Point3, Vector3};
 
+use crate::NonExhaustive;
 use crate::epnp_sums::{DepthWeighting, NormalSums, PRODUCTS, WhitenedFrame, total_chord_error};
-use crate::error::{Degeneracy, PnpError};
+use crate::error::{Degeneracy, PnpError, Result};
 use crate::geometry::{isometry_from, rotation_from_correlation};
 use crate::small_linear::{cholesky_solve_4, solve_linear};
 use crate::symmetric_eigen::smallest_eigenpairs;
@@ -60,9 +61,9 @@ pub const NEAR_PLANAR_FLATNESS: f64 = 0.05;
 /// Gauss-Newton iterations on the betas (the paper and its reference code use a handful).
 const BETA_GN_ITERATIONS: usize = 5;
 
-/// Options of [`epnp_with`].
+/// Options of [`epnp_with`]. Write them in one expression,
+/// `EpnpOptions { depth_reweighting: false, ..Default::default() }`.
 #[derive(Debug, Clone, PartialEq)]
-#[non_exhaustive]
 pub struct EpnpOptions {
     /// Run a second pass with the rows of each point divided by its depth from the first
     /// pass, and keep whichever pass has the smaller bearing error. The cross-product rows
@@ -71,12 +72,16 @@ pub struct EpnpOptions {
     /// the median rotation error by 5 to 7 percent on the paper's synthetic setup. Default
     /// true; false gives the paper's single pass.
     pub depth_reweighting: bool,
+    /// Keeps the struct open to new fields: write it with `..Default::default()`.
+    #[doc(hidden)]
+    pub non_exhaustive: NonExhaustive,
 }
 
 impl Default for EpnpOptions {
     fn default() -> Self {
         Self {
             depth_reweighting: true,
+            non_exhaustive: NonExhaustive::VALUE,
         }
     }
 }
@@ -93,7 +98,7 @@ impl Default for EpnpOptions {
 /// [`PnpError::NonFiniteBearing`], [`PnpError::NonFinitePoint`],
 /// [`PnpError::NonUnitBearing`], [`PnpError::Degenerate`] (coincident or collinear world
 /// points, parallel bearings), [`PnpError::Numerical`] if no candidate gives a rotation.
-pub fn epnp(bearings: &[Vector3<f64>], points: &[Point3<f64>]) -> Result<Isometry3<f64>, PnpError> {
+pub fn epnp(bearings: &[Vector3<f64>], points: &[Point3<f64>]) -> Result<Isometry3<f64>> {
     epnp_with(bearings, points, &EpnpOptions::default())
 }
 
@@ -105,7 +110,7 @@ pub fn epnp_with(
     bearings: &[Vector3<f64>],
     points: &[Point3<f64>],
     options: &EpnpOptions,
-) -> Result<Isometry3<f64>, PnpError> {
+) -> Result<Isometry3<f64>> {
     check_correspondences("EPnP", EPNP_MIN_POINTS, bearings, points)?;
     check_bearings_spread(bearings)?;
     let spread = point_spread(points)?;
@@ -134,7 +139,7 @@ pub(crate) fn solve(
     points: &[Point3<f64>],
     spread: &PointSpread,
     options: &EpnpOptions,
-) -> Result<Candidate, PnpError> {
+) -> Result<Candidate> {
     let flatness = spread.flatness();
     let mut best: Option<Candidate> = None;
     if flatness < NEAR_PLANAR_FLATNESS {
@@ -252,7 +257,7 @@ impl<'a> ControlSystem<'a> {
         weighting: Option<DepthWeighting<'_>>,
         spread: &'a PointSpread,
         dirs: usize,
-    ) -> Result<Self, PnpError> {
+    ) -> Result<Self> {
         // Whitening: alpha_k = (axis_k / s_k) . (X - centroid); unused directions stay zero.
         let mut scaled_axes = [Vector3::zeros(); 3];
         for (k, axis) in scaled_axes.iter_mut().enumerate().take(dirs) {

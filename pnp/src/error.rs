@@ -3,6 +3,9 @@
 
 use thiserror::Error;
 
+/// `Result` with [`PnpError`] as the default error.
+pub type Result<T, E = PnpError> = std::result::Result<T, E>;
+
 /// Why a set of 2D-3D correspondences has no unique answer.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[non_exhaustive]
@@ -123,10 +126,54 @@ pub enum PnpError {
         /// What was wrong with it.
         reason: String,
     },
-    /// The camera cannot unproject a pixel (feature `camera-models`).
-    #[cfg(feature = "camera-models")]
+    /// The camera cannot unproject a pixel, in a function of one pixel: the principal point
+    /// for [`crate::angle_from_pixels_at`] and [`crate::absolute_pose`] (which counts the
+    /// correspondences whose pixel cannot be unprojected as outliers instead), the pixel of
+    /// [`crate::bearing_information`].
     #[error("the camera cannot unproject the pixel: {0}")]
     Unprojection(#[from] ibc_camera_models::UnprojectionError),
+    /// A robust loss's scale is not finite and positive.
+    #[error("the scale of the robust loss must be finite and positive, got {scale}")]
+    InvalidLossScale {
+        /// The scale given.
+        scale: f64,
+    },
+    /// The pixel and world-point slices of [`crate::absolute_pose`] differ in length.
+    #[error("{pixels} pixels but {points} world points: they must pair up one to one")]
+    PixelLengthMismatch {
+        /// Number of pixels given.
+        pixels: usize,
+        /// Number of world points given.
+        points: usize,
+    },
+    /// A pixel has a NaN or infinite coordinate.
+    #[error("pixel {index} has a non-finite coordinate")]
+    NonFinitePixel {
+        /// Index of the offending pixel.
+        index: usize,
+    },
+    /// Too few pixels of [`crate::absolute_pose`] could be unprojected by the camera to
+    /// determine a pose.
+    #[error(
+        "only {unprojected} of {total} pixels could be unprojected by the camera, fewer than the {needed} needed"
+    )]
+    TooFewUnprojected {
+        /// Pixels the camera unprojected.
+        unprojected: usize,
+        /// The minimum number of correspondences.
+        needed: usize,
+        /// Number of pixels given.
+        total: usize,
+    },
+    /// The information of a bearing is undefined: the camera's d ray / d pixel is singular
+    /// or not finite at the pixel.
+    #[error("d ray / d pixel of the camera is singular or not finite at pixel ({u}, {v})")]
+    SingularUnprojectionJacobian {
+        /// The pixel's first coordinate.
+        u: f64,
+        /// The pixel's second coordinate.
+        v: f64,
+    },
     /// A computation produced a non-finite number or a singular system.
     #[error("numerical failure: {0}")]
     Numerical(&'static str),

@@ -1,11 +1,13 @@
 #![doc = include_str!("../README.md")]
 
-#[cfg(feature = "camera-models")]
+mod absolute_pose;
 mod camera_threshold;
 mod epnp;
 mod epnp_sums;
 mod error;
 mod geometry;
+mod information;
+mod loss;
 mod p3p;
 mod ransac;
 mod refine;
@@ -14,22 +16,46 @@ mod symmetric_eigen;
 mod threshold;
 mod validate;
 
-#[cfg(feature = "camera-models")]
+/// The linear-algebra crate of this crate's API (`Isometry3`, `Point3`, `Vector3`, ...), so
+/// callers can use the very version it was built with.
+pub use nalgebra;
+
+pub use absolute_pose::{
+    ABSOLUTE_POSE_MIN_POINTS, AbsolutePose, AbsolutePoseOptions, DEFAULT_MAX_ERROR_PX,
+    absolute_pose,
+};
 pub use camera_threshold::angle_from_pixels_at;
 pub use epnp::{
     EPNP_MIN_POINTS, EpnpOptions, NEAR_PLANAR_FLATNESS, PLANAR_FLATNESS, epnp, epnp_with,
 };
-pub use error::{Degeneracy, PnpError};
+pub use error::{Degeneracy, PnpError, Result};
+pub use information::{bearing_information, pinhole_information};
+pub use loss::RobustLoss;
 pub use p3p::{P3P_MAX_SOLUTIONS, P3pSolutions, p3p};
 pub use ransac::{
     CAMODOCAL_ITERATIONS, CAMODOCAL_THRESHOLD_PX, DEFAULT_MIN_INLIERS, DEFAULT_THRESHOLD,
     RansacOptions, RobustPose, robust_pose,
 };
 pub use refine::{
-    REFINE_MIN_POINTS, RefineOptions, RefinedPose, RobustLoss, pinhole_information, refine_pose,
-    refine_pose_weighted,
+    REFINE_MIN_POINTS, RefineOptions, RefinedPose, refine_pose, refine_pose_weighted,
 };
 pub use threshold::angle_from_pixels;
 pub use validate::{
     COINCIDENT_TOLERANCE, COLLINEAR_TOLERANCE, PARALLEL_TOLERANCE, UNIT_NORM_TOLERANCE,
 };
+
+/// The last field of every options struct of this crate (`non_exhaustive`), set by the
+/// struct's `Default`.
+///
+/// Code outside the crate cannot make one, so it writes an options struct as
+/// `RansacOptions { seed: 7, ..Default::default() }`: fields can then be added without
+/// breaking it, as `#[non_exhaustive]` would guarantee, while the one-expression form stays
+/// possible (the pattern of faer's parameter structs).
+#[doc(hidden)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct NonExhaustive(());
+
+impl NonExhaustive {
+    /// The marker, for this crate's `Default` impls.
+    pub(crate) const VALUE: Self = Self(());
+}

@@ -28,7 +28,7 @@
 
 use nalgebra::{Isometry3, Matrix3, Point3, UnitQuaternion, Vector3};
 
-use crate::error::{Degeneracy, PnpError};
+use crate::error::{Degeneracy, PnpError, Result};
 use crate::geometry::isometry_from;
 use crate::validate::{
     COINCIDENT_TOLERANCE, COLLINEAR_TOLERANCE, PARALLEL_TOLERANCE, check_correspondences,
@@ -122,10 +122,7 @@ impl<'a> IntoIterator for &'a P3pSolutions {
 /// [`PnpError::NonUnitBearing`]; [`PnpError::Degenerate`] for coincident or collinear world
 /// points or parallel bearings; [`PnpError::NoSolution`] when no real solution with positive
 /// depths exists.
-pub fn p3p(
-    bearings: &[Vector3<f64>; 3],
-    points: &[Point3<f64>; 3],
-) -> Result<P3pSolutions, PnpError> {
+pub fn p3p(bearings: &[Vector3<f64>; 3], points: &[Point3<f64>; 3]) -> Result<P3pSolutions> {
     check_correspondences("P3P", 3, bearings, points)?;
     // The tolerances compare norms; squared norms against squared bounds decide the same
     // (up to the rounding of the bound) without a square root.

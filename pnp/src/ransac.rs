@@ -15,8 +15,9 @@ use nalgebra::{Isometry3, Matrix3, Point3, Vector3};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
+use crate::NonExhaustive;
 use crate::epnp;
-use crate::error::PnpError;
+use crate::error::{PnpError, Result};
 use crate::geometry::{bearing_angle, isometry_from};
 use crate::p3p;
 use crate::refine::{RefineOptions, refine_subset};
@@ -42,9 +43,9 @@ const LO_ITERATIONS: usize = 10;
 /// stable inlier set.
 const FINAL_ROUNDS: usize = 5;
 
-/// Options of [`robust_pose`].
+/// Options of [`robust_pose`]. Write them in one expression,
+/// `RansacOptions { threshold: 2e-3, seed: 7, ..Default::default() }`.
 #[derive(Debug, Clone, PartialEq)]
-#[non_exhaustive]
 pub struct RansacOptions {
     /// Inlier threshold on the angle between a bearing and its point's direction, radians, in
     /// `(0, pi/2)`. Default [`DEFAULT_THRESHOLD`].
@@ -70,6 +71,9 @@ pub struct RansacOptions {
     pub refine: RefineOptions,
     /// Seed of the sampler: same seed, same result. Default 0.
     pub seed: u64,
+    /// Keeps the struct open to new fields: write it with `..Default::default()`.
+    #[doc(hidden)]
+    pub non_exhaustive: NonExhaustive,
 }
 
 impl Default for RansacOptions {
@@ -84,6 +88,7 @@ impl Default for RansacOptions {
             final_refinement: true,
             refine: RefineOptions::default(),
             seed: 0,
+            non_exhaustive: NonExhaustive::VALUE,
         }
     }
 }
@@ -103,7 +108,7 @@ impl RansacOptions {
     ///
     /// # Errors
     /// [`PnpError::InvalidOption`] if `focal_px` is not finite and positive.
-    pub fn camodocal(focal_px: f64) -> Result<Self, PnpError> {
+    pub fn camodocal(focal_px: f64) -> Result<Self> {
         Ok(Self {
             threshold: angle_from_pixels(CAMODOCAL_THRESHOLD_PX, focal_px)?,
             min_iterations: CAMODOCAL_ITERATIONS,
@@ -115,7 +120,7 @@ impl RansacOptions {
         })
     }
 
-    fn validate(&self) -> Result<(), PnpError> {
+    pub(crate) fn validate(&self) -> Result<()> {
         let invalid =
             |name: &'static str, reason: String| Err(PnpError::InvalidOption { name, reason });
         if !(self.threshold > 0.0 && self.threshold < core::f64::consts::FRAC_PI_2) {
@@ -176,7 +181,7 @@ pub fn robust_pose(
     bearings: &[Vector3<f64>],
     points: &[Point3<f64>],
     options: &RansacOptions,
-) -> Result<RobustPose, PnpError> {
+) -> Result<RobustPose> {
     check_correspondences("robust pose", 3, bearings, points)?;
     options.validate()?;
     check_bearings_spread(bearings)?;
@@ -376,6 +381,7 @@ fn final_refit(
     // Refinement follows, so EPnP's second (depth-reweighted) pass would buy nothing here.
     let single_pass = epnp::EpnpOptions {
         depth_reweighting: false,
+        ..epnp::EpnpOptions::default()
     };
     if inliers.len() >= epnp::EPNP_MIN_POINTS {
         let b: Vec<Vector3<f64>> = inliers.iter().map(|&i| scorer.bearings[i]).collect();

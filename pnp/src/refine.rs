@@ -11,116 +11,52 @@
 //! tangent-plane error of the bearing, and it is well defined and monotonic for every angle up
 //! to 180 degrees, so rays beyond 90 degrees of incidence are refined like any other. Its
 //! Jacobian is `(I - p^ p^^T) / |p| [-[p]x, I]` for the update `R <- exp(w) R`,
-//! `t <- exp(w) t + v`. Robust losses are applied by iteratively reweighted least squares.
+//! `t <- exp(w) t + v`. Robust losses ([`RobustLoss`]) are applied by iteratively reweighted
+//! least squares, the robustified normal equations of Triggs et al. 2000 (section 6.8) for
+//! losses with `rho'' <= 0` (see the `loss` module).
 
 use nalgebra::{
     Isometry3, Matrix3, Matrix6, Point3, Translation3, UnitQuaternion, Vector3, Vector6,
 };
 
-use crate::error::PnpError;
+use crate::NonExhaustive;
+use crate::error::{PnpError, Result};
+use crate::loss::RobustLoss;
 use crate::validate::check_correspondences;
 
-/// A robust loss `rho(s)` of the squared residual `s = |r|^2` (radians squared, to first
-/// order). Scales are in radians; turn pixels into an angle with
-/// [`crate::angle_from_pixels`].
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
-#[non_exhaustive]
-pub enum RobustLoss {
-    /// Plain least squares, `rho(s) = s`: the maximum-likelihood estimate under Gaussian
-    /// angular noise.
-    #[default]
-    Squared,
-    /// Huber: `rho(s) = s` for `s <= k^2`, `2 k sqrt(s) - k^2` beyond.
-    Huber {
-        /// The scale `k`, in radians.
-        scale: f64,
-    },
-    /// Cauchy: `rho(s) = k^2 ln(1 + s / k^2)`.
-    Cauchy {
-        /// The scale `k`, in radians.
-        scale: f64,
-    },
-}
-
-impl RobustLoss {
-    /// `rho(s)`.
-    pub fn rho(&self, s: f64) -> f64 {
-        match *self {
-            Self::Squared => s,
-            Self::Huber { scale } => {
-                if s <= scale * scale {
-                    s
-                } else {
-                    2.0 * scale * s.sqrt() - scale * scale
-                }
-            }
-            Self::Cauchy { scale } => {
-                let k2 = scale * scale;
-                k2 * (s / k2).ln_1p()
-            }
-        }
-    }
-
-    /// `rho'(s)`, the weight of a residual in iteratively reweighted least squares.
-    pub fn weight(&self, s: f64) -> f64 {
-        match *self {
-            Self::Squared => 1.0,
-            Self::Huber { scale } => {
-                if s <= scale * scale {
-                    1.0
-                } else {
-                    scale / s.sqrt()
-                }
-            }
-            Self::Cauchy { scale } => 1.0 / (1.0 + s / (scale * scale)),
-        }
-    }
-
-    fn validate(&self) -> Result<(), PnpError> {
-        match *self {
-            Self::Squared => Ok(()),
-            Self::Huber { scale } | Self::Cauchy { scale } => {
-                if scale.is_finite() && scale > 0.0 {
-                    Ok(())
-                } else {
-                    Err(PnpError::InvalidOption {
-                        name: "loss",
-                        reason: format!("the loss scale must be finite and positive, got {scale}"),
-                    })
-                }
-            }
-        }
-    }
-}
-
-/// Options of [`refine_pose`].
+/// Options of [`refine_pose`] and [`refine_pose_weighted`]. Write them in one expression,
+/// `RefineOptions { loss: RobustLoss::Cauchy { scale: 0.005 }, ..Default::default() }`.
 #[derive(Debug, Clone, PartialEq)]
-#[non_exhaustive]
 pub struct RefineOptions {
     /// Most Levenberg-Marquardt iterations. Default 50.
     pub max_iterations: usize,
-    /// The loss. Default [`RobustLoss::Squared`].
+    /// The loss, its scale in radians (the residual is the bearing error). Default
+    /// [`RobustLoss::Trivial`] (plain least squares).
     pub loss: RobustLoss,
     /// Stop when the update is smaller than this (radians for the rotation, and relative to
     /// the translation's norm plus the scene's spread for the translation). Default `1e-12`.
     pub step_tolerance: f64,
     /// Stop when an accepted step lowers the cost by less than this fraction. Default `1e-14`.
     pub cost_tolerance: f64,
+    /// Keeps the struct open to new fields: write it with `..Default::default()`.
+    #[doc(hidden)]
+    pub non_exhaustive: NonExhaustive,
 }
 
 impl Default for RefineOptions {
     fn default() -> Self {
         Self {
             max_iterations: 50,
-            loss: RobustLoss::Squared,
+            loss: RobustLoss::Trivial,
             step_tolerance: 1e-12,
             cost_tolerance: 1e-14,
+            non_exhaustive: NonExhaustive::VALUE,
         }
     }
 }
 
 impl RefineOptions {
-    pub(crate) fn validate(&self) -> Result<(), PnpError> {
+    pub(crate) fn validate(&self) -> Result<()> {
         self.loss.validate()?;
         for (name, value) in [
             ("step_tolerance", self.step_tolerance),
@@ -164,24 +100,24 @@ pub const REFINE_MIN_POINTS: usize = 3;
 ///
 /// # Errors
 /// The input errors of [`crate::epnp`] (with at least [`REFINE_MIN_POINTS`]),
-/// [`PnpError::InvalidOption`] for a non-positive loss scale, a negative tolerance or a
-/// non-finite `initial` pose, and [`PnpError::Numerical`] if the cost at `initial` is not
-/// finite.
+/// [`PnpError::InvalidLossScale`] for a loss scale that is not finite and positive,
+/// [`PnpError::InvalidOption`] for a negative tolerance or a non-finite `initial` pose, and
+/// [`PnpError::Numerical`] if the cost at `initial` is not finite.
 pub fn refine_pose(
     bearings: &[Vector3<f64>],
     points: &[Point3<f64>],
     initial: &Isometry3<f64>,
     options: &RefineOptions,
-) -> Result<RefinedPose, PnpError> {
+) -> Result<RefinedPose> {
     refine_checked(bearings, points, None, initial, options)
 }
 
 /// Like [`refine_pose`], with a per-correspondence information matrix `information[i]`
 /// (symmetric positive semi-definite, in bearing space): the cost is
-/// `sum rho(r_i^T information[i] r_i)`. With the information of the camera's pixel noise,
-/// `J_i^T J_i / sigma^2` for the projection Jacobian `J_i` (2 x 3) at the bearing, this is the
-/// maximum-likelihood pose under Gaussian pixel noise; [`pinhole_information`] gives it for a
-/// pinhole camera.
+/// `sum rho(r_i^T information[i] r_i)`. With the information of the camera's pixel noise
+/// (the pseudo-inverse of the bearing's covariance `J J^T sigma^2`, `J = d ray / d pixel`),
+/// this is the maximum-likelihood pose under Gaussian pixel noise;
+/// [`crate::bearing_information`] gives it for any camera model.
 ///
 /// # Errors
 /// Those of [`refine_pose`], and [`PnpError::InvalidOption`] (`information`) if there is not
@@ -192,7 +128,7 @@ pub fn refine_pose_weighted(
     information: &[Matrix3<f64>],
     initial: &Isometry3<f64>,
     options: &RefineOptions,
-) -> Result<RefinedPose, PnpError> {
+) -> Result<RefinedPose> {
     refine_checked(bearings, points, Some(information), initial, options)
 }
 
@@ -203,7 +139,7 @@ fn refine_checked(
     information: Option<&[Matrix3<f64>]>,
     initial: &Isometry3<f64>,
     options: &RefineOptions,
-) -> Result<RefinedPose, PnpError> {
+) -> Result<RefinedPose> {
     check_correspondences("pose refinement", REFINE_MIN_POINTS, bearings, points)?;
     if let Some(information) = information {
         let invalid = |reason: String| PnpError::InvalidOption {
@@ -230,27 +166,7 @@ fn refine_checked(
     refine_subset(bearings, points, &all, information, initial, options)
 }
 
-/// The information matrix of a bearing of a pinhole camera (focal length `focal_px` pixels
-/// in both axes) under isotropic pixel noise of one pixel: `J^T J` with `J` the Jacobian of
-/// `focal_px * (x / z, y / z)` at the bearing. Zero for a bearing with `z <= 0`, which a
-/// pinhole cannot see.
-pub fn pinhole_information(bearing: &Vector3<f64>, focal_px: f64) -> Matrix3<f64> {
-    let z = bearing.z;
-    if z.is_nan() || z <= 0.0 {
-        return Matrix3::zeros();
-    }
-    let jacobian = nalgebra::Matrix2x3::new(
-        1.0 / z,
-        0.0,
-        -bearing.x / (z * z),
-        0.0,
-        1.0 / z,
-        -bearing.y / (z * z),
-    ) * focal_px;
-    jacobian.transpose() * jacobian
-}
-
-fn check_initial(initial: &Isometry3<f64>) -> Result<(), PnpError> {
+fn check_initial(initial: &Isometry3<f64>) -> Result<()> {
     let finite = initial.translation.vector.iter().all(|v| v.is_finite())
         && initial.rotation.coords.iter().all(|v| v.is_finite());
     if finite {
@@ -271,7 +187,7 @@ pub(crate) fn refine_subset(
     information: Option<&[Matrix3<f64>]>,
     initial: &Isometry3<f64>,
     options: &RefineOptions,
-) -> Result<RefinedPose, PnpError> {
+) -> Result<RefinedPose> {
     let problem = Problem {
         bearings,
         points,

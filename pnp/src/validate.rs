@@ -4,7 +4,7 @@
 
 use nalgebra::{Matrix3, Point3, Vector3};
 
-use crate::error::{Degeneracy, PnpError};
+use crate::error::{Degeneracy, PnpError, Result};
 use crate::symmetric_eigen::smallest_eigenpairs;
 
 /// A bearing is accepted as a unit vector when `| |f| - 1 | <= UNIT_NORM_TOLERANCE`. Loose
@@ -30,7 +30,7 @@ pub(crate) fn check_correspondences(
     needed: usize,
     bearings: &[Vector3<f64>],
     points: &[Point3<f64>],
-) -> Result<(), PnpError> {
+) -> Result<()> {
     if bearings.len() != points.len() {
         return Err(PnpError::LengthMismatch {
             bearings: bearings.len(),
@@ -63,7 +63,7 @@ const UNIT_SQUARED_BAND: f64 = 2.0 * UNIT_NORM_TOLERANCE * (1.0 - UNIT_NORM_TOLE
 
 /// The checks of one correspondence, in the order they are reported.
 #[cold]
-fn check_one(index: usize, f: &Vector3<f64>, x: &Point3<f64>) -> Result<(), PnpError> {
+fn check_one(index: usize, f: &Vector3<f64>, x: &Point3<f64>) -> Result<()> {
     if !f.iter().all(|v| v.is_finite()) {
         return Err(PnpError::NonFiniteBearing { index });
     }
@@ -82,7 +82,7 @@ fn check_one(index: usize, f: &Vector3<f64>, x: &Point3<f64>) -> Result<(), PnpE
 }
 
 /// Refuses a bearing set whose rays are all one line through the centre.
-pub(crate) fn check_bearings_spread(bearings: &[Vector3<f64>]) -> Result<(), PnpError> {
+pub(crate) fn check_bearings_spread(bearings: &[Vector3<f64>]) -> Result<()> {
     let Some(first) = bearings.first() else {
         return Ok(());
     };
@@ -114,7 +114,7 @@ impl PointSpread {
 }
 
 /// Principal axes of the points; refuses coincident and collinear sets.
-pub(crate) fn point_spread(points: &[Point3<f64>]) -> Result<PointSpread, PnpError> {
+pub(crate) fn point_spread(points: &[Point3<f64>]) -> Result<PointSpread> {
     let n = points.len() as f64;
     let centroid = Point3::from(
         points

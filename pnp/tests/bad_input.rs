@@ -213,9 +213,7 @@ proptest! {
         let points: Vec<Point3<f64>> = raw.iter().map(|(_, x)| Point3::from(*x)).collect();
         let _ = epnp(&bearings, &points);
         let _ = refine_pose(&bearings, &points, &Isometry3::identity(), &RefineOptions::default());
-        let mut o = RansacOptions::default();
-        o.max_iterations = 50;
-        o.min_iterations = 10;
+        let o = RansacOptions { max_iterations: 50, min_iterations: 10, ..Default::default() };
         let _ = robust_pose(&bearings, &points, &o);
         if bearings.len() >= 3 {
             let y = [bearings[0], bearings[1], bearings[2]];

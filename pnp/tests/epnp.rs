@@ -149,11 +149,13 @@ fn no_catastrophic_failures_at_n_6_sigma_5() {
         .collect();
     for (label, options) in [
         ("default", EpnpOptions::default()),
-        ("single pass", {
-            let mut o = EpnpOptions::default();
-            o.depth_reweighting = false;
-            o
-        }),
+        (
+            "single pass",
+            EpnpOptions {
+                depth_reweighting: false,
+                ..Default::default()
+            },
+        ),
     ] {
         let (closed, refined) = errors(&scenes, &options);
         let (closed, refined) = (quantile(&closed, 0.95), quantile(&refined, 0.95));
@@ -169,8 +171,10 @@ fn single_pass_is_the_papers_epnp_and_reweighting_improves_it() {
     let scenes: Vec<Scene> = (0..TRIALS)
         .map(|_| pinhole_scene(&mut rng, 50, 1.0))
         .collect();
-    let mut single = EpnpOptions::default();
-    single.depth_reweighting = false;
+    let single = EpnpOptions {
+        depth_reweighting: false,
+        ..Default::default()
+    };
     let (single, _) = errors(&scenes, &single);
     let (default, _) = errors(&scenes, &EpnpOptions::default());
     let (single, default) = (median(&single), median(&default));

@@ -21,9 +21,10 @@ fn add_outliers(rng: &mut ChaCha8Rng, scene: &mut Scene, count: usize) {
 }
 
 fn options(seed: u64) -> RansacOptions {
-    let mut o = RansacOptions::default();
-    o.seed = seed;
-    o
+    RansacOptions {
+        seed,
+        ..Default::default()
+    }
 }
 
 #[test]
@@ -123,9 +124,11 @@ fn too_few_inliers_is_an_error_with_the_count() {
         other => panic!("expected TooFewInliers, got {other:?}"),
     }
     // With the floor lowered to 10 the same data localizes.
-    let mut o = options(0);
-    o.min_inliers = 10;
-    o.max_iterations = 100_000;
+    let o = RansacOptions {
+        min_inliers: 10,
+        max_iterations: 100_000,
+        ..options(0)
+    };
     let r = robust_pose(&s.bearings, &s.points, &o).unwrap();
     assert!(rotation_error_deg(&r.camera_from_world, &s.camera_from_world) < 1.0);
 }
@@ -156,8 +159,10 @@ fn camodocal_preset_runs_its_fixed_budget() {
     for trial in 0..40 {
         let mut s = pinhole_scene(&mut rng, 500, 1.0);
         add_outliers(&mut rng, &mut s, 250);
-        let mut o = preset.clone();
-        o.seed = trial;
+        let o = RansacOptions {
+            seed: trial,
+            ..preset.clone()
+        };
         let r = robust_pose(&s.bearings, &s.points, &o).unwrap();
         assert_eq!(r.iterations, CAMODOCAL_ITERATIONS);
         // Without a refit the pose is that of the best minimal sample: degrees, not hundredths.
@@ -185,13 +190,17 @@ fn invalid_options_and_input_are_typed_errors() {
         (2.0, "threshold"),
         (f64::NAN, "threshold"),
     ] {
-        let mut o = options(0);
-        o.threshold = threshold;
+        let o = RansacOptions {
+            threshold,
+            ..options(0)
+        };
         assert!(matches!(invalid(&o), PnpError::InvalidOption { name: n, .. } if n == name));
     }
     for confidence in [0.0, 1.0, f64::NAN] {
-        let mut o = options(0);
-        o.confidence = confidence;
+        let o = RansacOptions {
+            confidence,
+            ..options(0)
+        };
         assert!(matches!(
             invalid(&o),
             PnpError::InvalidOption {
@@ -200,9 +209,11 @@ fn invalid_options_and_input_are_typed_errors() {
             }
         ));
     }
-    let mut o = options(0);
-    o.min_iterations = 10;
-    o.max_iterations = 5;
+    let o = RansacOptions {
+        min_iterations: 10,
+        max_iterations: 5,
+        ..options(0)
+    };
     assert!(matches!(
         invalid(&o),
         PnpError::InvalidOption {
@@ -210,8 +221,11 @@ fn invalid_options_and_input_are_typed_errors() {
             ..
         }
     ));
-    o.min_iterations = 0;
-    o.max_iterations = 0;
+    let o = RansacOptions {
+        min_iterations: 0,
+        max_iterations: 0,
+        ..options(0)
+    };
     assert!(matches!(
         invalid(&o),
         PnpError::InvalidOption {

@@ -92,12 +92,14 @@ fn robust_losses_resist_gross_outliers() {
             *f = bearing_of_pixel(rng.random_range(0.0..640.0), rng.random_range(0.0..480.0));
         }
         for (loss, out) in [
-            (RobustLoss::Squared, &mut plain),
+            (RobustLoss::Trivial, &mut plain),
             (RobustLoss::Huber { scale }, &mut huber),
             (RobustLoss::Cauchy { scale }, &mut cauchy),
         ] {
-            let mut options = RefineOptions::default();
-            options.loss = loss;
+            let options = RefineOptions {
+                loss,
+                ..Default::default()
+            };
             let refined = refine_pose(&s.bearings, &s.points, &start, &options).unwrap();
             out.push(rotation_error_deg(
                 &refined.camera_from_world,
@@ -159,15 +161,19 @@ fn invalid_options_and_input_are_typed_errors() {
         RobustLoss::Cauchy { scale: -1.0 },
         RobustLoss::Cauchy { scale: f64::NAN },
     ] {
-        let mut options = RefineOptions::default();
-        options.loss = loss;
+        let options = RefineOptions {
+            loss,
+            ..Default::default()
+        };
         assert!(matches!(
             refine_pose(&s.bearings, &s.points, &start, &options),
-            Err(PnpError::InvalidOption { name: "loss", .. })
+            Err(PnpError::InvalidLossScale { .. })
         ));
     }
-    let mut options = RefineOptions::default();
-    options.step_tolerance = -1.0;
+    let options = RefineOptions {
+        step_tolerance: -1.0,
+        ..Default::default()
+    };
     assert!(matches!(
         refine_pose(&s.bearings, &s.points, &start, &options),
         Err(PnpError::InvalidOption {
