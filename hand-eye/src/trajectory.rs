@@ -30,7 +30,8 @@
 
 use nalgebra::{Isometry3, SMatrix, SVector, Translation3, UnitQuaternion, Vector3};
 
-use crate::error::HandEyeError;
+use crate::NonExhaustive;
+use crate::error::{HandEyeError, OptionField, Result};
 use crate::guo_planar::DEFAULT_MAX_OUT_OF_PLANE;
 use crate::least_squares::{Model, assess, minimize, standard_deviations};
 use crate::motion::check_trajectories;
@@ -38,8 +39,9 @@ use crate::plane::reduce_to_plane;
 use crate::refine::{RefineOptions, Uncertainty};
 
 /// Options of [`refine_trajectories`].
+///
+/// Write them as `TrajectoryOptions { field: value, ..Default::default() }`.
 #[derive(Debug, Clone, Copy, PartialEq)]
-#[non_exhaustive]
 pub struct TrajectoryOptions {
     /// Sensor `b` moves in the `xy` plane of its world frame: its poses are reduced to yaw and
     /// `xy` position, and the height `t_Y,z` of the starting estimate (which the motion cannot
@@ -53,8 +55,12 @@ pub struct TrajectoryOptions {
     pub estimate_scale: bool,
     /// Starting (or fixed) scale, positive. Default 1.
     pub initial_scale: f64,
-    /// Iterations and weights of the Levenberg-Marquardt runs.
+    /// Iterations and weights of the Levenberg-Marquardt runs. Default
+    /// [`RefineOptions::default()`].
     pub refine: RefineOptions,
+    /// Keeps the struct open to new fields; use `..Default::default()`.
+    #[doc(hidden)]
+    pub non_exhaustive: NonExhaustive,
 }
 
 impl Default for TrajectoryOptions {
@@ -65,6 +71,7 @@ impl Default for TrajectoryOptions {
             estimate_scale: false,
             initial_scale: 1.0,
             refine: RefineOptions::default(),
+            non_exhaustive: NonExhaustive(()),
         }
     }
 }
@@ -120,12 +127,13 @@ pub fn refine_trajectories(
     world_from_b: &[Isometry3<f64>],
     a_from_b: &Isometry3<f64>,
     options: &TrajectoryOptions,
-) -> Result<TrajectoryFit, HandEyeError> {
+) -> Result<TrajectoryFit> {
     check_trajectories(world_from_a, world_from_b)?;
     crate::motion::check_pose(a_from_b, 0, crate::error::Sensor::A)?;
     if !(options.initial_scale > 0.0 && options.initial_scale.is_finite()) {
         return Err(HandEyeError::InvalidOptions {
-            what: "TrajectoryOptions::initial_scale must be positive and finite",
+            field: OptionField::InitialScale,
+            value: options.initial_scale,
         });
     }
     if world_from_a.len() < 3 {
@@ -189,13 +197,11 @@ pub fn refine_trajectories(
 }
 
 /// Poses of `b` reduced to yaw and `xy` position, after checking that they stay in the plane.
-fn planar_poses(
-    world_from_b: &[Isometry3<f64>],
-    tolerance: f64,
-) -> Result<Vec<Isometry3<f64>>, HandEyeError> {
+fn planar_poses(world_from_b: &[Isometry3<f64>], tolerance: f64) -> Result<Vec<Isometry3<f64>>> {
     if !(tolerance >= 0.0 && tolerance.is_finite()) {
         return Err(HandEyeError::InvalidOptions {
-            what: "TrajectoryOptions::max_out_of_plane must be finite and non-negative",
+            field: OptionField::TrajectoryMaxOutOfPlane,
+            value: tolerance,
         });
     }
     reduce_to_plane(world_from_b.iter(), &mean_position(world_from_b), tolerance)
