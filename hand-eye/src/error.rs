@@ -223,6 +223,8 @@ pub enum Decomposition {
     DaniilidisSvd,
     /// The eigen-decomposition of the planar method's roll-pitch system.
     RollPitchEigen,
+    /// The Cholesky factor of a pose's residual covariance ([`crate::NoiseModel`]).
+    NoiseCovariance,
 }
 
 impl fmt::Display for Decomposition {
@@ -230,6 +232,7 @@ impl fmt::Display for Decomposition {
         f.write_str(match self {
             Decomposition::DaniilidisSvd => "singular value decomposition of the Daniilidis system",
             Decomposition::RollPitchEigen => "eigen-decomposition of the roll-pitch system",
+            Decomposition::NoiseCovariance => "factorization of the residual covariance of a pose",
         })
     }
 }
@@ -258,6 +261,10 @@ pub enum OptionField {
     RotationSigma,
     /// [`crate::RefineOptions::translation_sigma`].
     TranslationSigma,
+    /// [`crate::PoseNoise::rotation`] of the given sensor in [`crate::NoiseModel::Both`].
+    NoiseRotation(Sensor),
+    /// [`crate::PoseNoise::translation`] of the given sensor in [`crate::NoiseModel::Both`].
+    NoiseTranslation(Sensor),
 }
 
 /// `field = value, must be domain`, the value in degrees or metres.
@@ -283,8 +290,11 @@ impl OptionField {
             | OptionField::MaxRotation
             | OptionField::PlanarMaxOutOfPlane
             | OptionField::TrajectoryMaxOutOfPlane
-            | OptionField::RotationSigma => Unit::Degrees,
-            OptionField::HeightPrior | OptionField::TranslationSigma => Unit::Metres,
+            | OptionField::RotationSigma
+            | OptionField::NoiseRotation(_) => Unit::Degrees,
+            OptionField::HeightPrior
+            | OptionField::TranslationSigma
+            | OptionField::NoiseTranslation(_) => Unit::Metres,
             OptionField::DaniilidisMinSignalToNoise
             | OptionField::PlanarMinSignalToNoise
             | OptionField::InitialScale => Unit::None,
@@ -314,13 +324,19 @@ impl OptionField {
             OptionField::HeightPrior => "finite",
             OptionField::InitialScale
             | OptionField::RotationSigma
-            | OptionField::TranslationSigma => "positive and finite",
+            | OptionField::TranslationSigma
+            | OptionField::NoiseRotation(_)
+            | OptionField::NoiseTranslation(_) => "positive and finite",
         }
     }
 }
 
 impl fmt::Display for OptionField {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let sensor = |s: &Sensor| match s {
+            Sensor::A => "a",
+            Sensor::B => "b",
+        };
         match self {
             OptionField::MinRotation => f.write_str("MotionScreening::min_rotation"),
             OptionField::MaxRotation => f.write_str("MotionScreening::max_rotation"),
@@ -338,6 +354,12 @@ impl fmt::Display for OptionField {
             OptionField::InitialScale => f.write_str("TrajectoryOptions::initial_scale"),
             OptionField::RotationSigma => f.write_str("RefineOptions::rotation_sigma"),
             OptionField::TranslationSigma => f.write_str("RefineOptions::translation_sigma"),
+            OptionField::NoiseRotation(s) => {
+                write!(f, "NoiseModel::Both {{ {}: rotation }}", sensor(s))
+            }
+            OptionField::NoiseTranslation(s) => {
+                write!(f, "NoiseModel::Both {{ {}: translation }}", sensor(s))
+            }
         }
     }
 }

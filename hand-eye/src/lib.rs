@@ -5,6 +5,7 @@ mod error;
 mod guo_planar;
 mod least_squares;
 mod motion;
+mod noise;
 mod plane;
 mod quadratic;
 mod refine;
@@ -23,6 +24,7 @@ pub use guo_planar::{
     PlanarSolution, guo_planar,
 };
 pub use motion::{MotionPair, Pairing, UNIT_QUATERNION_TOLERANCE, relative_motions};
+pub use noise::{NoiseModel, PoseFrame, PoseNoise};
 pub use refine::{DEFAULT_MAX_ITERATIONS, RefineOptions, Refined, Uncertainty, refine};
 pub use screening::{DEFAULT_MAX_ROTATION, DEFAULT_MIN_ROTATION, MotionScreening};
 pub use trajectory::{TrajectoryFit, TrajectoryOptions, refine_trajectories};

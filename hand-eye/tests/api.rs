@@ -6,9 +6,9 @@
 
 use ibc_hand_eye::nalgebra::{Isometry3, Vector3};
 use ibc_hand_eye::{
-    DaniilidisOptions, HandEyeError, Height, MotionScreening, OptionField, Pairing, PlanarOptions,
-    RefineOptions, TrajectoryOptions, daniilidis, guo_planar, refine_trajectories,
-    relative_motions,
+    DaniilidisOptions, HandEyeError, Height, MotionScreening, NoiseModel, OptionField, Pairing,
+    PlanarOptions, PoseFrame, PoseNoise, RefineOptions, Sensor, TrajectoryOptions, daniilidis,
+    guo_planar, refine_trajectories, relative_motions,
 };
 
 /// A car driving a wavy loop (odometry in its plane) and the rig on it.
@@ -51,6 +51,10 @@ fn every_options_struct_in_one_expression() -> ibc_hand_eye::Result<()> {
         ..Default::default()
     };
     let trajectory_options = TrajectoryOptions {
+        noise: NoiseModel::Both {
+            a: PoseNoise::new(PoseFrame::SensorFromWorld, 0.002, 0.005),
+            b: PoseNoise::new(PoseFrame::WorldFromSensor, 0.001, 0.001),
+        },
         refine,
         ..TrajectoryOptions::planar(false, 1.0)
     };
@@ -129,5 +133,25 @@ fn errors_name_the_culprit_in_degrees_and_metres() {
     assert_eq!(
         error.to_string(),
         "invalid option: PlanarOptions::height_prior = inf m, must be finite"
+    );
+
+    let options = TrajectoryOptions {
+        noise: NoiseModel::Both {
+            a: PoseNoise::new(PoseFrame::SensorFromWorld, 0.002, 0.005),
+            b: PoseNoise::new(PoseFrame::WorldFromSensor, 0.001, -0.001),
+        },
+        ..Default::default()
+    };
+    let error = refine_trajectories(&poses, &poses, &Isometry3::identity(), &options).unwrap_err();
+    assert_eq!(
+        error,
+        HandEyeError::InvalidOptions {
+            field: OptionField::NoiseTranslation(Sensor::B),
+            value: -0.001
+        }
+    );
+    assert_eq!(
+        error.to_string(),
+        "invalid option: NoiseModel::Both { b: translation } = -0.0010 m, must be positive and finite"
     );
 }
