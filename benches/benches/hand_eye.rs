@@ -106,8 +106,10 @@ fn bench_hand_eye(c: &mut Criterion) {
         group.bench_function(BenchmarkId::new("guo_planar", pairs), |b| {
             b.iter(|| guo_planar(black_box(&planar), &options).unwrap().a_from_b)
         });
-        let mut options = PlanarOptions::default();
-        options.estimate_scale = true;
+        let options = PlanarOptions {
+            estimate_scale: true,
+            ..Default::default()
+        };
         group.bench_function(BenchmarkId::new("guo_planar_scale", pairs), |b| {
             b.iter(|| guo_planar(black_box(&planar), &options).unwrap().a_from_b)
         });

@@ -32,7 +32,8 @@
 use nalgebra::{DMatrix, Isometry3, Matrix3, Quaternion, SMatrix, SymmetricEigen, Translation3};
 use nalgebra::{UnitQuaternion, Vector3, Vector4, linalg::SVD};
 
-use crate::error::HandEyeError;
+use crate::NonExhaustive;
+use crate::error::{Decomposition, HandEyeError, NullSpaceStep, OptionField, Result, Unobservable};
 use crate::motion::{MotionPair, check_pairs};
 use crate::quadratic::unit_circle_roots;
 use crate::refine::{Free, Problem, RefineOptions, Uncertainty, Unknowns};
@@ -55,10 +56,12 @@ pub const PARALLEL_AXIS_SPREAD: f64 = 0.1;
 const SVD_MAX_ITERATIONS: usize = 10_000;
 
 /// Options of [`daniilidis`].
+///
+/// Write them as `DaniilidisOptions { field: value, ..Default::default() }`.
 #[derive(Debug, Clone, Copy, PartialEq)]
-#[non_exhaustive]
 pub struct DaniilidisOptions {
-    /// Which motions form the linear system (rotation between 2 and 175 degrees by default).
+    /// Which motions form the linear system. Default [`MotionScreening::default()`]: rotations
+    /// between 2 and 175 degrees.
     pub screening: MotionScreening,
     /// Smallest `σ₆ / σ₇` accepted; default [`DEFAULT_MIN_SIGNAL_TO_NOISE`].
     pub min_signal_to_noise: f64,
@@ -67,6 +70,9 @@ pub struct DaniilidisOptions {
     /// the absolute trajectories are at hand, [`crate::refine_trajectories`] is the better
     /// refinement.
     pub refine: Option<RefineOptions>,
+    /// Keeps the struct open to new fields; use `..Default::default()`.
+    #[doc(hidden)]
+    pub non_exhaustive: NonExhaustive,
 }
 
 impl Default for DaniilidisOptions {
@@ -75,6 +81,7 @@ impl Default for DaniilidisOptions {
             screening: MotionScreening::default(),
             min_signal_to_noise: DEFAULT_MIN_SIGNAL_TO_NOISE,
             refine: None,
+            non_exhaustive: NonExhaustive(()),
         }
     }
 }
@@ -115,14 +122,12 @@ pub struct HandEyeSolution {
 ///   [`HandEyeError::Degenerate`] if `σ₆ / σ₇` is too small for another reason (rotations
 ///   too small for the noise);
 /// - [`HandEyeError::NegativeDiscriminant`] if the null space holds no unit dual quaternion.
-pub fn daniilidis(
-    pairs: &[MotionPair],
-    options: &DaniilidisOptions,
-) -> Result<HandEyeSolution, HandEyeError> {
+pub fn daniilidis(pairs: &[MotionPair], options: &DaniilidisOptions) -> Result<HandEyeSolution> {
     check_pairs(pairs)?;
     if options.min_signal_to_noise.is_nan() || options.min_signal_to_noise < 0.0 {
         return Err(HandEyeError::InvalidOptions {
-            what: "DaniilidisOptions::min_signal_to_noise must be non-negative",
+            field: OptionField::DaniilidisMinSignalToNoise,
+            value: options.min_signal_to_noise,
         });
     }
     let screened = screen(
@@ -138,11 +143,11 @@ pub fn daniilidis(
     let r = triangular_factor(system_matrix(pairs, used, length));
     let svd = SVD::try_new(r, false, true, f64::EPSILON, SVD_MAX_ITERATIONS).ok_or(
         HandEyeError::NoConvergence {
-            what: "singular value decomposition of the Daniilidis system",
+            what: Decomposition::DaniilidisSvd,
         },
     )?;
     let v_t = svd.v_t.ok_or(HandEyeError::NoConvergence {
-        what: "singular vectors of the Daniilidis system",
+        what: Decomposition::DaniilidisSvd,
     })?;
     let singular_values: [f64; 8] = svd.singular_values.into();
     let noise = singular_values[6].max(f64::EPSILON * singular_values[0]);
@@ -158,7 +163,7 @@ pub fn daniilidis(
     // qᵀq' = 0 (eq. 35) as a quadratic in (λ₁, λ₂).
     let roots = unit_circle_roots(u1.dot(&w1), u1.dot(&w2) + u2.dot(&w1), u2.dot(&w2)).map_err(
         |discriminant| HandEyeError::NegativeDiscriminant {
-            step: "dual-quaternion null space (q·q' = 0)",
+            step: NullSpaceStep::DualQuaternion,
             discriminant,
         },
     )?;
@@ -330,9 +335,9 @@ fn degeneracy(
     // rotation part q or the translation part q' is poorly determined.
     let weakest: Vector4<f64> = v_t.row(5).transpose().fixed_rows::<4>(0).into_owned();
     let unobservable = if weakest.norm_squared() > 0.5 {
-        "the rotation of X (rotations too small for the noise)"
+        Unobservable::Rotation
     } else {
-        "the translation of X (rotations too small for the noise)"
+        Unobservable::Translation
     };
     HandEyeError::Degenerate {
         unobservable,

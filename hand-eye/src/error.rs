@@ -1,9 +1,11 @@
 //! The crate's error type: every way the input can fail to determine the transform.
 
+use std::fmt;
+
 use nalgebra::Vector3;
 
 /// Which of the two sensors a pose or a motion belongs to (see the crate docs for `a` and `b`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum Sensor {
     /// Sensor `a`, whose motions are the `A_i` of `A_i X = X B_i` (the rig, in the pipeline).
     A,
@@ -102,7 +104,7 @@ pub enum HandEyeError {
     )]
     Degenerate {
         /// What the motions cannot determine.
-        unobservable: &'static str,
+        unobservable: Unobservable,
         /// The figure that revealed it (signal over noise of the weakest direction).
         signal_to_noise: f64,
     },
@@ -114,7 +116,7 @@ pub enum HandEyeError {
     )]
     NegativeDiscriminant {
         /// The step whose quadratic failed.
-        step: &'static str,
+        step: NullSpaceStep,
         /// The discriminant (its coefficients are of order one).
         discriminant: f64,
     },
@@ -138,17 +140,228 @@ pub enum HandEyeError {
         tolerance: f64,
     },
     /// An options field is outside its valid domain.
-    #[error("invalid option: {what}")]
+    #[error("invalid option: {}", invalid_option(*.field, *.value))]
     InvalidOptions {
-        /// Which field, and what its domain is.
-        what: &'static str,
+        /// The field.
+        field: OptionField,
+        /// Its value, in the field's unit (radians for angles).
+        value: f64,
+    },
+    /// A [`crate::Pairing::Window`] of size zero, which pairs no poses.
+    #[error("Pairing::Window {{ size: {size} }} pairs no poses: the size must be at least 1")]
+    InvalidWindow {
+        /// The size given.
+        size: usize,
     },
     /// A numerical decomposition did not converge (this should not happen on finite input).
     #[error("the {what} did not converge")]
     NoConvergence {
         /// The decomposition.
-        what: &'static str,
+        what: Decomposition,
     },
+}
+
+/// Shorthand for the crate's results: `Result<T>` is `Result<T, HandEyeError>`.
+pub type Result<T, E = HandEyeError> = std::result::Result<T, E>;
+
+/// What a degenerate motion set leaves undetermined ([`HandEyeError::Degenerate`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[non_exhaustive]
+pub enum Unobservable {
+    /// The rotation of `X` (Daniilidis: rotations too small for the noise).
+    Rotation,
+    /// The translation of `X` (Daniilidis: rotations too small for the noise).
+    Translation,
+    /// The roll and pitch of `X` (planar method: rotations too small for the noise).
+    RollPitch,
+    /// The in-plane translation of `X` (planar method: sensor `b` never rotates).
+    InPlaneTranslation,
+    /// The yaw of `X` (planar method: sensor `a` does not translate).
+    Yaw,
+}
+
+impl fmt::Display for Unobservable {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            Unobservable::Rotation => "the rotation of X (rotations too small for the noise)",
+            Unobservable::Translation => "the translation of X (rotations too small for the noise)",
+            Unobservable::RollPitch => {
+                "the roll and pitch of X (rotations too small for the noise)"
+            }
+            Unobservable::InPlaneTranslation => {
+                "the in-plane translation of X (sensor b never rotates)"
+            }
+            Unobservable::Yaw => "the yaw of X (sensor a does not translate)",
+        })
+    }
+}
+
+/// The null-space step whose quadratic constraint failed ([`HandEyeError::NegativeDiscriminant`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[non_exhaustive]
+pub enum NullSpaceStep {
+    /// Daniilidis: the unit dual quaternion in the null space (`q·q' = 0`).
+    DualQuaternion,
+    /// Planar method: the roll-pitch quaternion mapping an axis of `a` into the `xz` plane of `b`.
+    RollPitch,
+}
+
+impl fmt::Display for NullSpaceStep {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            NullSpaceStep::DualQuaternion => "dual-quaternion null space (q·q' = 0)",
+            NullSpaceStep::RollPitch => "roll-pitch null space (axis of a in the xz plane of b)",
+        })
+    }
+}
+
+/// A decomposition that did not converge ([`HandEyeError::NoConvergence`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[non_exhaustive]
+pub enum Decomposition {
+    /// The singular value decomposition of Daniilidis' system.
+    DaniilidisSvd,
+    /// The eigen-decomposition of the planar method's roll-pitch system.
+    RollPitchEigen,
+    /// The Cholesky factor of a pose's residual covariance ([`crate::NoiseModel`]).
+    NoiseCovariance,
+}
+
+impl fmt::Display for Decomposition {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            Decomposition::DaniilidisSvd => "singular value decomposition of the Daniilidis system",
+            Decomposition::RollPitchEigen => "eigen-decomposition of the roll-pitch system",
+            Decomposition::NoiseCovariance => "factorization of the residual covariance of a pose",
+        })
+    }
+}
+
+/// An options field, named by [`HandEyeError::InvalidOptions`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[non_exhaustive]
+pub enum OptionField {
+    /// [`crate::MotionScreening::min_rotation`].
+    MinRotation,
+    /// [`crate::MotionScreening::max_rotation`].
+    MaxRotation,
+    /// [`crate::DaniilidisOptions::min_signal_to_noise`].
+    DaniilidisMinSignalToNoise,
+    /// [`crate::PlanarOptions::min_signal_to_noise`].
+    PlanarMinSignalToNoise,
+    /// [`crate::PlanarOptions::max_out_of_plane`].
+    PlanarMaxOutOfPlane,
+    /// [`crate::PlanarOptions::height_prior`].
+    HeightPrior,
+    /// [`crate::TrajectoryOptions::max_out_of_plane`].
+    TrajectoryMaxOutOfPlane,
+    /// [`crate::TrajectoryOptions::initial_scale`].
+    InitialScale,
+    /// [`crate::RefineOptions::rotation_sigma`].
+    RotationSigma,
+    /// [`crate::RefineOptions::translation_sigma`].
+    TranslationSigma,
+    /// [`crate::PoseNoise::rotation`] of the given sensor in [`crate::NoiseModel::Both`].
+    NoiseRotation(Sensor),
+    /// [`crate::PoseNoise::translation`] of the given sensor in [`crate::NoiseModel::Both`].
+    NoiseTranslation(Sensor),
+}
+
+/// `field = value, must be domain`, the value in degrees or metres.
+fn invalid_option(field: OptionField, value: f64) -> String {
+    format!(
+        "{field} = {}, must be {}",
+        field.format(value),
+        field.domain()
+    )
+}
+
+/// The unit a field's value is shown in.
+enum Unit {
+    Degrees,
+    Metres,
+    None,
+}
+
+impl OptionField {
+    fn unit(self) -> Unit {
+        match self {
+            OptionField::MinRotation
+            | OptionField::MaxRotation
+            | OptionField::PlanarMaxOutOfPlane
+            | OptionField::TrajectoryMaxOutOfPlane
+            | OptionField::RotationSigma
+            | OptionField::NoiseRotation(_) => Unit::Degrees,
+            OptionField::HeightPrior
+            | OptionField::TranslationSigma
+            | OptionField::NoiseTranslation(_) => Unit::Metres,
+            OptionField::DaniilidisMinSignalToNoise
+            | OptionField::PlanarMinSignalToNoise
+            | OptionField::InitialScale => Unit::None,
+        }
+    }
+
+    /// A value of the field (radians for angles) in its display unit.
+    fn format(self, value: f64) -> String {
+        match self.unit() {
+            Unit::Degrees => format!("{:.3} deg", value.to_degrees()),
+            Unit::Metres => format!("{value:.4} m"),
+            Unit::None => format!("{value}"),
+        }
+    }
+
+    /// The valid domain of the field.
+    fn domain(self) -> &'static str {
+        match self {
+            OptionField::MinRotation => "in [0, max_rotation)",
+            OptionField::MaxRotation => "in (min_rotation, 180 deg]",
+            OptionField::DaniilidisMinSignalToNoise | OptionField::PlanarMinSignalToNoise => {
+                "non-negative"
+            }
+            OptionField::PlanarMaxOutOfPlane | OptionField::TrajectoryMaxOutOfPlane => {
+                "finite and non-negative"
+            }
+            OptionField::HeightPrior => "finite",
+            OptionField::InitialScale
+            | OptionField::RotationSigma
+            | OptionField::TranslationSigma
+            | OptionField::NoiseRotation(_)
+            | OptionField::NoiseTranslation(_) => "positive and finite",
+        }
+    }
+}
+
+impl fmt::Display for OptionField {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let sensor = |s: &Sensor| match s {
+            Sensor::A => "a",
+            Sensor::B => "b",
+        };
+        match self {
+            OptionField::MinRotation => f.write_str("MotionScreening::min_rotation"),
+            OptionField::MaxRotation => f.write_str("MotionScreening::max_rotation"),
+            OptionField::DaniilidisMinSignalToNoise => {
+                f.write_str("DaniilidisOptions::min_signal_to_noise")
+            }
+            OptionField::PlanarMinSignalToNoise => {
+                f.write_str("PlanarOptions::min_signal_to_noise")
+            }
+            OptionField::PlanarMaxOutOfPlane => f.write_str("PlanarOptions::max_out_of_plane"),
+            OptionField::HeightPrior => f.write_str("PlanarOptions::height_prior"),
+            OptionField::TrajectoryMaxOutOfPlane => {
+                f.write_str("TrajectoryOptions::max_out_of_plane")
+            }
+            OptionField::InitialScale => f.write_str("TrajectoryOptions::initial_scale"),
+            OptionField::RotationSigma => f.write_str("RefineOptions::rotation_sigma"),
+            OptionField::TranslationSigma => f.write_str("RefineOptions::translation_sigma"),
+            OptionField::NoiseRotation(s) => {
+                write!(f, "NoiseModel::Both {{ {}: rotation }}", sensor(s))
+            }
+            OptionField::NoiseTranslation(s) => {
+                write!(f, "NoiseModel::Both {{ {}: translation }}", sensor(s))
+            }
+        }
+    }
 }
 
 impl HandEyeError {

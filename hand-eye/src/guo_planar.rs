@@ -44,7 +44,8 @@
 use nalgebra::{Isometry3, Matrix2, Matrix4, Quaternion, SymmetricEigen, Translation3};
 use nalgebra::{UnitQuaternion, Vector2, Vector3, Vector4};
 
-use crate::error::HandEyeError;
+use crate::NonExhaustive;
+use crate::error::{Decomposition, HandEyeError, NullSpaceStep, OptionField, Result, Unobservable};
 use crate::motion::{MotionPair, check_pairs};
 use crate::plane::reduce_to_plane;
 use crate::quadratic::unit_circle_roots;
@@ -65,10 +66,12 @@ pub const DEFAULT_MIN_PLANAR_SIGNAL_TO_NOISE: f64 = 10.0;
 const NORMAL_MATRIX_FLOOR: f64 = 1e-7;
 
 /// Options of [`guo_planar`].
+///
+/// Write them as `PlanarOptions { field: value, ..Default::default() }`.
 #[derive(Debug, Clone, Copy, PartialEq)]
-#[non_exhaustive]
 pub struct PlanarOptions {
-    /// Which motions enter the roll-pitch step (rotation between 2 and 175 degrees by default).
+    /// Which motions enter the roll-pitch step. Default [`MotionScreening::default()`]:
+    /// rotations between 2 and 175 degrees.
     pub screening: MotionScreening,
     /// Estimate an unknown scale `s` of the translations of sensor `a` (a monocular camera);
     /// `s t_Ai` is then in the unit of `t_Bi`. Default `false` (both metric, `s = 1`).
@@ -87,6 +90,9 @@ pub struct PlanarOptions {
     /// or `None` (default, the paper's analytical solution). When the absolute trajectories are
     /// at hand, [`crate::refine_trajectories`] is the better refinement.
     pub refine: Option<RefineOptions>,
+    /// Keeps the struct open to new fields; use `..Default::default()`.
+    #[doc(hidden)]
+    pub non_exhaustive: NonExhaustive,
 }
 
 impl Default for PlanarOptions {
@@ -98,6 +104,7 @@ impl Default for PlanarOptions {
             max_out_of_plane: DEFAULT_MAX_OUT_OF_PLANE,
             min_signal_to_noise: DEFAULT_MIN_PLANAR_SIGNAL_TO_NOISE,
             refine: None,
+            non_exhaustive: NonExhaustive(()),
         }
     }
 }
@@ -163,10 +170,7 @@ pub struct PlanarSolution {
 ///   the noise, or if the translations of `a` cannot fix the yaw;
 /// - [`HandEyeError::NegativeDiscriminant`] if no combination of the null space satisfies the
 ///   constraint (a guard: the structure of the null space rules it out, see the module docs).
-pub fn guo_planar(
-    pairs: &[MotionPair],
-    options: &PlanarOptions,
-) -> Result<PlanarSolution, HandEyeError> {
+pub fn guo_planar(pairs: &[MotionPair], options: &PlanarOptions) -> Result<PlanarSolution> {
     check_pairs(pairs)?;
     validate(options)?;
     let planar_b = reduce_to_plane(
@@ -200,7 +204,7 @@ pub fn guo_planar(
         .sum();
     let eigen =
         SymmetricEigen::try_new(normal, f64::EPSILON, 1000).ok_or(HandEyeError::NoConvergence {
-            what: "eigen-decomposition of the roll-pitch system",
+            what: Decomposition::RollPitchEigen,
         })?;
     let mut order = [0, 1, 2, 3];
     order.sort_by(|&i, &j| eigen.eigenvalues[j].total_cmp(&eigen.eigenvalues[i]));
@@ -210,7 +214,7 @@ pub fn guo_planar(
     let signal_to_noise = singular_values[1] / noise;
     if signal_to_noise.is_nan() || signal_to_noise < options.min_signal_to_noise {
         return Err(HandEyeError::Degenerate {
-            unobservable: "the roll and pitch of X (rotations too small for the noise)",
+            unobservable: Unobservable::RollPitch,
             signal_to_noise,
         });
     }
@@ -264,20 +268,23 @@ pub fn guo_planar(
     })
 }
 
-fn validate(options: &PlanarOptions) -> Result<(), HandEyeError> {
+fn validate(options: &PlanarOptions) -> Result<()> {
     if !(options.max_out_of_plane >= 0.0 && options.max_out_of_plane.is_finite()) {
         return Err(HandEyeError::InvalidOptions {
-            what: "PlanarOptions::max_out_of_plane must be finite and non-negative",
+            field: OptionField::PlanarMaxOutOfPlane,
+            value: options.max_out_of_plane,
         });
     }
     if options.min_signal_to_noise.is_nan() || options.min_signal_to_noise < 0.0 {
         return Err(HandEyeError::InvalidOptions {
-            what: "PlanarOptions::min_signal_to_noise must be non-negative",
+            field: OptionField::PlanarMinSignalToNoise,
+            value: options.min_signal_to_noise,
         });
     }
-    if options.height_prior.is_some_and(|h| !h.is_finite()) {
+    if let Some(height) = options.height_prior.filter(|h| !h.is_finite()) {
         return Err(HandEyeError::InvalidOptions {
-            what: "PlanarOptions::height_prior must be finite",
+            field: OptionField::HeightPrior,
+            value: height,
         });
     }
     Ok(())
@@ -314,10 +321,7 @@ fn rotation_entry(q: &Vector4<f64>, row: usize, col: usize) -> f64 {
 
 /// The representative `q₀` of the null space `span(v₁, v₂)`: the unit combination that maps
 /// the axis `k` of frame `a` closest to the plane into the `xz` half-plane `x > 0` of `b`.
-fn representative(
-    v1: &Vector4<f64>,
-    v2: &Vector4<f64>,
-) -> Result<UnitQuaternion<f64>, HandEyeError> {
+fn representative(v1: &Vector4<f64>, v2: &Vector4<f64>) -> Result<UnitQuaternion<f64>> {
     // Rotations about z keep the height of every axis, so any null vector tells which axis of
     // a lies closest to the plane.
     let k = (0..3)
@@ -332,7 +336,7 @@ fn representative(
     let b = 0.5 * (form(&(v1 + v2)) - form(&(v1 - v2)));
     let roots =
         unit_circle_roots(a, b, c).map_err(|discriminant| HandEyeError::NegativeDiscriminant {
-            step: "roll-pitch null space (axis of a in the xz plane of b)",
+            step: NullSpaceStep::RollPitch,
             discriminant,
         })?;
     let candidate = |(l1, l2): (f64, f64)| v1 * l1 + v2 * l2;
@@ -353,7 +357,7 @@ fn yaw_and_translation(
     planar_b: &[Isometry3<f64>],
     q0: &UnitQuaternion<f64>,
     estimate_scale: bool,
-) -> Result<(UnitQuaternion<f64>, Vector2<f64>, f64), HandEyeError> {
+) -> Result<(UnitQuaternion<f64>, Vector2<f64>, f64)> {
     // Sums of JᵀJ (a multiple of I), JᵀK, KᵀK, Jᵀr, Kᵀr over the motions.
     let mut jj = 0.0;
     let (mut jk, mut kk) = (Matrix2::zeros(), Matrix2::zeros());
@@ -372,7 +376,7 @@ fn yaw_and_translation(
     }
     if jj.is_nan() || jj <= 0.0 {
         return Err(HandEyeError::Degenerate {
-            unobservable: "the in-plane translation of X (sensor b never rotates)",
+            unobservable: Unobservable::InPlaneTranslation,
             signal_to_noise: 0.0,
         });
     }
@@ -380,7 +384,7 @@ fn yaw_and_translation(
     let w = kk - jk.transpose() * jk / jj;
     let g = kr - jk.transpose() * jr / jj;
     let no_yaw = HandEyeError::Degenerate {
-        unobservable: "the yaw of X (sensor a does not translate)",
+        unobservable: Unobservable::Yaw,
         signal_to_noise: 0.0,
     };
     let (y, scale) = if estimate_scale {

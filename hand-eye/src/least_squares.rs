@@ -9,7 +9,7 @@
 
 use nalgebra::{SMatrix, SVector, Vector3};
 
-use crate::error::HandEyeError;
+use crate::error::{HandEyeError, OptionField, Result};
 use crate::refine::RefineOptions;
 
 /// Smallest noise figure used as a weight, relative to one radian or to the model's length
@@ -197,12 +197,14 @@ pub(crate) fn minimize<const N: usize, M: Model<N>>(
     model: &M,
     start: M::State,
     options: &RefineOptions,
-) -> Result<(M::State, usize), HandEyeError> {
-    let positive = |s: Option<f64>| s.is_none_or(|s| s > 0.0 && s.is_finite());
-    if !(positive(options.rotation_sigma) && positive(options.translation_sigma)) {
-        return Err(HandEyeError::InvalidOptions {
-            what: "RefineOptions sigmas must be positive and finite",
-        });
+) -> Result<(M::State, usize)> {
+    for (sigma, field) in [
+        (options.rotation_sigma, OptionField::RotationSigma),
+        (options.translation_sigma, OptionField::TranslationSigma),
+    ] {
+        if let Some(value) = sigma.filter(|s| !(*s > 0.0 && s.is_finite())) {
+            return Err(HandEyeError::InvalidOptions { field, value });
+        }
     }
     let sigmas = |state: &M::State| {
         let estimated = estimated_sigmas(model, squared_sums(model, state));

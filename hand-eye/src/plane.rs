@@ -2,7 +2,7 @@
 
 use nalgebra::{Isometry3, Vector3};
 
-use crate::error::HandEyeError;
+use crate::error::{HandEyeError, Result};
 
 /// Checks that every pose rotates about `z` to within `tolerance` (tilt of the `z` axis) and
 /// that the translations, taken relative to `origin`, rise out of the `xy` plane by at most
@@ -11,7 +11,7 @@ pub(crate) fn reduce_to_plane<'a>(
     poses: impl ExactSizeIterator<Item = &'a Isometry3<f64>>,
     origin: &Vector3<f64>,
     tolerance: f64,
-) -> Result<Vec<Isometry3<f64>>, HandEyeError> {
+) -> Result<Vec<Isometry3<f64>>> {
     let (mut sum_z, mut sum_xy) = (0.0, 0.0);
     let mut planar = Vec::with_capacity(poses.len());
     for (index, pose) in poses.enumerate() {

@@ -24,7 +24,8 @@
 
 use nalgebra::{Isometry3, Matrix3, SMatrix, SVector, Translation3, UnitQuaternion, Vector3};
 
-use crate::error::HandEyeError;
+use crate::NonExhaustive;
+use crate::error::{HandEyeError, Result};
 use crate::least_squares::{Model, assess, minimize, standard_deviations};
 use crate::motion::{MotionPair, check_pairs};
 
@@ -32,8 +33,9 @@ use crate::motion::{MotionPair, check_pairs};
 pub const DEFAULT_MAX_ITERATIONS: usize = 50;
 
 /// Options of the nonlinear refinement.
+///
+/// Write them as `RefineOptions { field: value, ..Default::default() }`.
 #[derive(Debug, Clone, Copy, PartialEq)]
-#[non_exhaustive]
 pub struct RefineOptions {
     /// Iteration limit of each Levenberg-Marquardt run. Default [`DEFAULT_MAX_ITERATIONS`].
     pub max_iterations: usize,
@@ -43,6 +45,9 @@ pub struct RefineOptions {
     /// Noise of the translation residual per component, metres, if known. Default `None`:
     /// estimated from the residuals.
     pub translation_sigma: Option<f64>,
+    /// Keeps the struct open to new fields; use `..Default::default()`.
+    #[doc(hidden)]
+    pub non_exhaustive: NonExhaustive,
 }
 
 impl Default for RefineOptions {
@@ -51,6 +56,7 @@ impl Default for RefineOptions {
             max_iterations: DEFAULT_MAX_ITERATIONS,
             rotation_sigma: None,
             translation_sigma: None,
+            non_exhaustive: NonExhaustive(()),
         }
     }
 }
@@ -97,7 +103,7 @@ pub fn refine(
     pairs: &[MotionPair],
     a_from_b: &Isometry3<f64>,
     options: &RefineOptions,
-) -> Result<Refined, HandEyeError> {
+) -> Result<Refined> {
     check_pairs(pairs)?;
     crate::motion::check_pose(a_from_b, 0, crate::error::Sensor::A)?;
     if pairs.len() < 2 {
@@ -188,11 +194,7 @@ impl Problem {
     }
 
     /// Refines `start`, then assesses the result.
-    pub(crate) fn refine(
-        &self,
-        start: Unknowns,
-        options: &RefineOptions,
-    ) -> Result<(Fit, usize), HandEyeError> {
+    pub(crate) fn refine(&self, start: Unknowns, options: &RefineOptions) -> Result<(Fit, usize)> {
         let (state, iterations) = minimize(self, start, options)?;
         Ok((self.assess(state), iterations))
     }

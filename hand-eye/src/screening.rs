@@ -11,7 +11,8 @@
 
 use nalgebra::{Quaternion, UnitQuaternion};
 
-use crate::error::HandEyeError;
+use crate::NonExhaustive;
+use crate::error::{HandEyeError, OptionField, Result};
 
 /// Default smallest rotation angle of a motion used by the quaternion steps: 2 degrees.
 ///
@@ -31,8 +32,10 @@ pub const DEFAULT_MAX_ROTATION: f64 = 175.0 * std::f64::consts::PI / 180.0;
 ///
 /// A motion is used when both its rotation angles (of `A_i` and of `B_i`) lie in
 /// `[min_rotation, max_rotation]`.
+///
+/// Write them as `MotionScreening { field: value, ..Default::default() }` or with
+/// [`MotionScreening::new`].
 #[derive(Debug, Clone, Copy, PartialEq)]
-#[non_exhaustive]
 pub struct MotionScreening {
     /// Smallest rotation angle, radians, in `[0, max_rotation)`. Default
     /// [`DEFAULT_MIN_ROTATION`] (2 degrees).
@@ -40,6 +43,9 @@ pub struct MotionScreening {
     /// Largest rotation angle, radians, in `(min_rotation, π]`. Default
     /// [`DEFAULT_MAX_ROTATION`] (175 degrees).
     pub max_rotation: f64,
+    /// Keeps the struct open to new fields; use `..Default::default()`.
+    #[doc(hidden)]
+    pub non_exhaustive: NonExhaustive,
 }
 
 impl Default for MotionScreening {
@@ -47,6 +53,7 @@ impl Default for MotionScreening {
         Self {
             min_rotation: DEFAULT_MIN_ROTATION,
             max_rotation: DEFAULT_MAX_ROTATION,
+            non_exhaustive: NonExhaustive(()),
         }
     }
 }
@@ -58,20 +65,24 @@ impl MotionScreening {
         Self {
             min_rotation,
             max_rotation,
+            non_exhaustive: NonExhaustive(()),
         }
     }
 
-    fn validate(&self) -> Result<(), HandEyeError> {
-        let valid = self.min_rotation >= 0.0
-            && self.max_rotation <= std::f64::consts::PI
-            && self.min_rotation < self.max_rotation;
-        if valid {
-            Ok(())
-        } else {
-            Err(HandEyeError::InvalidOptions {
-                what: "MotionScreening needs 0 <= min_rotation < max_rotation <= pi",
-            })
+    fn validate(&self) -> Result<()> {
+        if !(self.min_rotation >= 0.0 && self.min_rotation < std::f64::consts::PI) {
+            return Err(HandEyeError::InvalidOptions {
+                field: OptionField::MinRotation,
+                value: self.min_rotation,
+            });
         }
+        if !(self.max_rotation > self.min_rotation && self.max_rotation <= std::f64::consts::PI) {
+            return Err(HandEyeError::InvalidOptions {
+                field: OptionField::MaxRotation,
+                value: self.max_rotation,
+            });
+        }
+        Ok(())
     }
 }
 
@@ -97,11 +108,7 @@ pub(crate) struct Screened {
 
 impl Screened {
     /// Errors unless at least `needed` motions were kept.
-    pub(crate) fn require(
-        &self,
-        needed: usize,
-        options: &MotionScreening,
-    ) -> Result<(), HandEyeError> {
+    pub(crate) fn require(&self, needed: usize, options: &MotionScreening) -> Result<()> {
         if self.motions.is_empty() && self.rejected_half_turn == 0 {
             return Err(HandEyeError::NoRotation {
                 largest_rotation: self.largest_rotation,
@@ -125,7 +132,7 @@ impl Screened {
 pub(crate) fn screen(
     rotations: impl Iterator<Item = (UnitQuaternion<f64>, UnitQuaternion<f64>)>,
     options: &MotionScreening,
-) -> Result<Screened, HandEyeError> {
+) -> Result<Screened> {
     options.validate()?;
     // θ = 2 atan2(|v|, |w|) compared with a threshold θ₀ without an arctangent: θ < θ₀ if and
     // only if |v| cos(θ₀/2) < |w| sin(θ₀/2).

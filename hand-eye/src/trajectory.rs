@@ -3,7 +3,7 @@
 //! When the synchronized trajectories `world_a_from_a_k` and `world_b_from_b_k` are at hand
 //! (the pipeline's rig poses and odometry log), the statistically right residual is not that of
 //! the relative motions, whose noise is correlated between pairs and inflated by the lever arm
-//! of every rotation error, but the error of each measured pose of sensor `a`. The model is
+//! of every rotation error, but the error of each measured pose. The model is
 //!
 //! ```text
 //! world_a_from_a_k = W · world_b_from_b_k · Y,    Y = b_from_a = X⁻¹,  W = world_a_from_world_b
@@ -20,26 +20,36 @@
 //!
 //! — the rotation and translation errors of the measured pose in its own frame, independent of
 //! the distance to the world origin. `s` is the optional scale of the translations of `a`.
-//! The odometry poses are taken as exact (their noise only adds to the residual variance).
 //! Levenberg-Marquardt with analytic Jacobians updates `R_Y ← exp(α) R_Y`, `t_Y ← t_Y + Δy`
 //! (frame `b`), `W ← (exp(β), Δw) · W`, and `s`, with the weights of [`crate::RefineOptions`].
 //! For planar motion of `b` its poses are reduced to yaw and `xy` position and `t_Y,z` is held.
 //!
-//! Measured on OpenCV's hand-eye simulation (10 poses), this refinement brings the median
-//! translation error of the Daniilidis estimate from 11.7 mm to 9.4 mm; see the crate's tests.
+//! Which poses are noisy is [`TrajectoryOptions::noise`]. By default ([`NoiseModel::A`] with
+//! [`PoseFrame::SensorFromWorld`]) `r` itself is minimized: the maximum-likelihood estimate for
+//! independent errors of `a_k_from_world_a` and exact poses of `b`. For the other models `r` is
+//! mapped, pose by pose, onto the errors of the noisy poses (`J⁻¹ r`), or whitened by its
+//! covariance when both trajectories are noisy (`L⁻¹ r`); see [`NoiseModel`] for the matrices.
+//!
+//! Measured on OpenCV's hand-eye simulation (10 poses, the camera as `a`), this refinement
+//! brings the median translation error of the Daniilidis estimate from 11.6 mm to 9.1 mm; with
+//! the camera as `b` it needs [`NoiseModel::B`] to do as well (see the crate docs and
+//! `tests/noise_role.rs`).
 
-use nalgebra::{Isometry3, SMatrix, SVector, Translation3, UnitQuaternion, Vector3};
+use nalgebra::{Isometry3, Matrix6, SMatrix, SVector, Translation3, UnitQuaternion, Vector3};
 
-use crate::error::HandEyeError;
+use crate::NonExhaustive;
+use crate::error::{Decomposition, HandEyeError, OptionField, Result, Sensor};
 use crate::guo_planar::DEFAULT_MAX_OUT_OF_PLANE;
 use crate::least_squares::{Model, assess, minimize, standard_deviations};
 use crate::motion::check_trajectories;
+use crate::noise::{NoiseModel, PoseContext, PoseFrame, translation_error, whitening};
 use crate::plane::reduce_to_plane;
 use crate::refine::{RefineOptions, Uncertainty};
 
 /// Options of [`refine_trajectories`].
+///
+/// Write them as `TrajectoryOptions { field: value, ..Default::default() }`.
 #[derive(Debug, Clone, Copy, PartialEq)]
-#[non_exhaustive]
 pub struct TrajectoryOptions {
     /// Sensor `b` moves in the `xy` plane of its world frame: its poses are reduced to yaw and
     /// `xy` position, and the height `t_Y,z` of the starting estimate (which the motion cannot
@@ -53,8 +63,17 @@ pub struct TrajectoryOptions {
     pub estimate_scale: bool,
     /// Starting (or fixed) scale, positive. Default 1.
     pub initial_scale: f64,
-    /// Iterations and weights of the Levenberg-Marquardt runs.
+    /// Which trajectory's poses are noisy, and how. Default
+    /// `NoiseModel::A(PoseFrame::SensorFromWorld)`: noise on the poses of `a` as
+    /// `a_k_from_world_a`, those of `b` exact.
+    pub noise: NoiseModel,
+    /// Iterations and weights of the Levenberg-Marquardt runs. Default
+    /// [`RefineOptions::default()`]. Its standard deviations, if given, are those of the noisy
+    /// poses (not used with [`NoiseModel::Both`]).
     pub refine: RefineOptions,
+    /// Keeps the struct open to new fields; use `..Default::default()`.
+    #[doc(hidden)]
+    pub non_exhaustive: NonExhaustive,
 }
 
 impl Default for TrajectoryOptions {
@@ -64,7 +83,9 @@ impl Default for TrajectoryOptions {
             max_out_of_plane: DEFAULT_MAX_OUT_OF_PLANE,
             estimate_scale: false,
             initial_scale: 1.0,
+            noise: NoiseModel::default(),
             refine: RefineOptions::default(),
+            non_exhaustive: NonExhaustive(()),
         }
     }
 }
@@ -95,12 +116,21 @@ pub struct TrajectoryFit {
     pub world_a_from_world_b: Isometry3<f64>,
     /// Scale of the translations of `a` (the initial scale unless estimated).
     pub scale: f64,
-    /// Residual RMS over the poses (rotation, radians; translation in the unit of `a`) and
-    /// predicted standard deviations of `Y = b_from_a`: rotation about the axes of frame `b`
-    /// (`z` is the yaw), translation in frame `b`, `z` infinite when `planar`.
+    /// Residual RMS over the poses and predicted standard deviations of `Y = b_from_a`:
+    /// rotation about the axes of frame `b` (`z` is the yaw), translation in frame `b`, `z`
+    /// infinite when `planar`. The residuals are the errors of the noisy poses in the form of
+    /// the noise model (radians; the unit of the noisy trajectory), or with
+    /// [`NoiseModel::Both`] the errors in units of their standard deviations (about 1.7 each
+    /// if the given standard deviations are right).
     pub uncertainty: Uncertainty,
-    /// Levenberg-Marquardt iterations (both runs).
+    /// Levenberg-Marquardt iterations (all runs).
     pub iterations: usize,
+    /// The single-trajectory noise model ([`NoiseModel::A`] or [`NoiseModel::B`], either
+    /// [`PoseFrame`]) under which the errors of the poses at the estimate are smallest (RMS of
+    /// their translation, in the unit of `b`; their rotation errors have the same RMS under
+    /// each). When it differs from the model of the options, the data contradict that model:
+    /// refine again with this one (or give [`NoiseModel::Both`] if both sensors are noisy).
+    pub likeliest_noise: NoiseModel,
 }
 
 /// Refines `X = a_from_b` (from [`crate::daniilidis`] or [`crate::guo_planar`] on the
@@ -108,26 +138,32 @@ pub struct TrajectoryFit {
 /// of the world frames with it (see the module docs).
 ///
 /// `world_from_a[k]` and `world_from_b[k]` are synchronized poses, as for
-/// [`crate::relative_motions`]; at least three are needed.
+/// [`crate::relative_motions`]; at least three are needed. [`TrajectoryOptions::noise`] says
+/// which of them are noisy: the default suits a camera rig localized against a map or target as
+/// `a` and exact poses of `b`; see [`NoiseModel`] for the others, and
+/// [`TrajectoryFit::likeliest_noise`] for what the data say.
 ///
 /// # Errors
 /// [`HandEyeError::MismatchedLengths`], [`HandEyeError::NonFinite`],
 /// [`HandEyeError::NotUnitQuaternion`], [`HandEyeError::InvalidOptions`] for invalid input;
 /// [`HandEyeError::TooFewMotions`] for fewer than three poses; [`HandEyeError::NotPlanar`] if
-/// `planar` and the poses of `b` leave the plane.
+/// `planar` and the poses of `b` leave the plane; [`HandEyeError::NoConvergence`] if the
+/// covariance of a pose cannot be factored (non-finite values during the refinement).
 pub fn refine_trajectories(
     world_from_a: &[Isometry3<f64>],
     world_from_b: &[Isometry3<f64>],
     a_from_b: &Isometry3<f64>,
     options: &TrajectoryOptions,
-) -> Result<TrajectoryFit, HandEyeError> {
+) -> Result<TrajectoryFit> {
     check_trajectories(world_from_a, world_from_b)?;
-    crate::motion::check_pose(a_from_b, 0, crate::error::Sensor::A)?;
+    crate::motion::check_pose(a_from_b, 0, Sensor::A)?;
     if !(options.initial_scale > 0.0 && options.initial_scale.is_finite()) {
         return Err(HandEyeError::InvalidOptions {
-            what: "TrajectoryOptions::initial_scale must be positive and finite",
+            field: OptionField::InitialScale,
+            value: options.initial_scale,
         });
     }
+    options.noise.validate()?;
     if world_from_a.len() < 3 {
         return Err(HandEyeError::too_few_motions(
             world_from_a.len().saturating_sub(1),
@@ -138,7 +174,7 @@ pub fn refine_trajectories(
     } else {
         world_from_b.to_vec()
     };
-    let model = Trajectories {
+    let mut model = Trajectories {
         measured: world_from_a.iter().map(Isometry3::inverse).collect(),
         odometry,
         free: [
@@ -157,6 +193,7 @@ pub fn refine_trajectories(
             options.estimate_scale,
         ],
         length: rms_position(world_from_a),
+        whitening: None,
     };
     let y = a_from_b.inverse();
     let start = State {
@@ -164,7 +201,24 @@ pub fn refine_trajectories(
         w: initial_alignment(world_from_a, &model.odometry, &y, options.initial_scale),
         scale: options.initial_scale,
     };
-    let (state, iterations) = minimize(&model, start, &options.refine)?;
+    let (state, iterations) = if options.noise.is_identity() {
+        minimize(&model, start, &options.refine)?
+    } else {
+        // The weights depend on the estimate: from the start, then again from the first result.
+        let refine = match options.noise {
+            NoiseModel::Both { .. } => RefineOptions {
+                rotation_sigma: Some(1.0),
+                translation_sigma: Some(1.0),
+                ..options.refine
+            },
+            _ => options.refine,
+        };
+        model.whitening = Some(model.whitening(&options.noise, &start)?);
+        let (first, n1) = minimize(&model, start, &refine)?;
+        model.whitening = Some(model.whitening(&options.noise, &first)?);
+        let (second, n2) = minimize(&model, first, &refine)?;
+        (second, n1 + n2)
+    };
     let assessment = assess(&model, &state);
     let mut translation_std = standard_deviations(&assessment.covariance, 3);
     if options.planar {
@@ -185,17 +239,61 @@ pub fn refine_trajectories(
                 .then(|| standard_deviations(&assessment.covariance, 10).z),
         },
         iterations,
+        likeliest_noise: likeliest_noise(&mut model, &state),
     })
 }
 
+/// The single-trajectory model that gives the smallest translation errors at `state` (the
+/// default model if none gives finite errors).
+fn likeliest_noise(model: &mut Trajectories, state: &State) -> NoiseModel {
+    model.whitening = None;
+    let residuals: Vec<_> = (0..model.blocks())
+        .map(|k| model.residual(state, k))
+        .collect();
+    let x_rotation = state.y.rotation.inverse();
+    let mut best = (f64::INFINITY, NoiseModel::default());
+    for (sensor, frame) in [
+        (Sensor::A, PoseFrame::SensorFromWorld),
+        (Sensor::A, PoseFrame::WorldFromSensor),
+        (Sensor::B, PoseFrame::SensorFromWorld),
+        (Sensor::B, PoseFrame::WorldFromSensor),
+    ] {
+        let mut sum = 0.0;
+        for (k, (r_rot, r_trans)) in residuals.iter().enumerate() {
+            let pose = PoseContext {
+                measured: &model.measured[k],
+                odometry: &model.odometry[k],
+                x_rotation: &x_rotation,
+                w: &state.w,
+                scale: state.scale,
+            };
+            sum += translation_error(sensor, frame, &pose, r_rot, r_trans)
+                .map_or(f64::NAN, |e| e.norm_squared());
+        }
+        // Translation errors of `a` are in its unit: metric (the unit of `b`) times the scale.
+        let metric = match sensor {
+            Sensor::A => sum * state.scale * state.scale,
+            Sensor::B => sum,
+        };
+        if metric < best.0 {
+            best = (
+                metric,
+                match sensor {
+                    Sensor::A => NoiseModel::A(frame),
+                    Sensor::B => NoiseModel::B(frame),
+                },
+            );
+        }
+    }
+    best.1
+}
+
 /// Poses of `b` reduced to yaw and `xy` position, after checking that they stay in the plane.
-fn planar_poses(
-    world_from_b: &[Isometry3<f64>],
-    tolerance: f64,
-) -> Result<Vec<Isometry3<f64>>, HandEyeError> {
+fn planar_poses(world_from_b: &[Isometry3<f64>], tolerance: f64) -> Result<Vec<Isometry3<f64>>> {
     if !(tolerance >= 0.0 && tolerance.is_finite()) {
         return Err(HandEyeError::InvalidOptions {
-            what: "TrajectoryOptions::max_out_of_plane must be finite and non-negative",
+            field: OptionField::TrajectoryMaxOutOfPlane,
+            value: tolerance,
         });
     }
     reduce_to_plane(world_from_b.iter(), &mean_position(world_from_b), tolerance)
@@ -277,9 +375,47 @@ struct Trajectories {
     odometry: Vec<Isometry3<f64>>,
     free: [bool; 13],
     length: f64,
+    /// Per pose, the matrix applied to the residual and its Jacobian (the noise model; `None`
+    /// for the identity).
+    whitening: Option<Vec<Matrix6<f64>>>,
 }
 
 impl Trajectories {
+    /// The whitening matrices of `noise` at `state`.
+    fn whitening(&self, noise: &NoiseModel, state: &State) -> Result<Vec<Matrix6<f64>>> {
+        let x_rotation = state.y.rotation.inverse();
+        self.measured
+            .iter()
+            .zip(&self.odometry)
+            .map(|(measured, odometry)| {
+                let pose = PoseContext {
+                    measured,
+                    odometry,
+                    x_rotation: &x_rotation,
+                    w: &state.w,
+                    scale: state.scale,
+                };
+                whitening(noise, &pose).ok_or(HandEyeError::NoConvergence {
+                    what: Decomposition::NoiseCovariance,
+                })
+            })
+            .collect()
+    }
+
+    /// The residual as the noise model weighs it.
+    fn weighted(&self, k: usize, r: Vector3<f64>, t: Vector3<f64>) -> (Vector3<f64>, Vector3<f64>) {
+        match &self.whitening {
+            None => (r, t),
+            Some(w) => {
+                let e = w[k] * SVector::<f64, 6>::from_iterator(r.iter().chain(t.iter()).copied());
+                (
+                    e.fixed_rows::<3>(0).into_owned(),
+                    e.fixed_rows::<3>(3).into_owned(),
+                )
+            }
+        }
+    }
+
     /// Predicted `a_k_from_world_a` (metric).
     fn predicted(&self, state: &State, k: usize) -> Isometry3<f64> {
         (state.w * self.odometry[k] * state.y).inverse()
@@ -296,7 +432,8 @@ impl Model<13> for Trajectories {
     fn residual(&self, state: &State, k: usize) -> (Vector3<f64>, Vector3<f64>) {
         let m = &self.measured[k];
         let p = self.predicted(state, k);
-        (
+        self.weighted(
+            k,
             (m.rotation * p.rotation.inverse()).scaled_axis(),
             m.translation.vector - p.translation.vector / state.scale,
         )
@@ -323,7 +460,10 @@ impl Model<13> for Trajectories {
             .copy_from(&(r_p.matrix() * inv_s));
         j.fixed_view_mut::<3, 1>(3, 12)
             .copy_from(&(p.translation.vector * (inv_s * inv_s)));
-        j
+        match &self.whitening {
+            None => j,
+            Some(w) => w[k] * j,
+        }
     }
 
     fn apply(&self, state: &State, step: &SVector<f64, 13>) -> State {
@@ -354,8 +494,88 @@ impl Model<13> for Trajectories {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::noise::noise_jacobian;
     use crate::test_support::iso;
     use approx::assert_relative_eq;
+
+    /// An error `(ω, v)` of a pose in the given form: `sensor_from_world` as
+    /// `(exp(ω) R, t + v)`, `world_from_sensor` as `(R exp(ω), t + v)`, where `pose` is
+    /// `sensor_from_world`.
+    fn perturbed(
+        sensor_from_world: &Isometry3<f64>,
+        frame: PoseFrame,
+        error: &SVector<f64, 6>,
+    ) -> Isometry3<f64> {
+        let omega = UnitQuaternion::from_scaled_axis(error.fixed_rows::<3>(0).into_owned());
+        let v = error.fixed_rows::<3>(3).into_owned();
+        match frame {
+            PoseFrame::SensorFromWorld => Isometry3::from_parts(
+                Translation3::from(sensor_from_world.translation.vector + v),
+                omega * sensor_from_world.rotation,
+            ),
+            PoseFrame::WorldFromSensor => {
+                let w = sensor_from_world.inverse();
+                Isometry3::from_parts(
+                    Translation3::from(w.translation.vector + v),
+                    w.rotation * omega,
+                )
+                .inverse()
+            }
+        }
+    }
+
+    /// The noise Jacobians of `noise.rs` against finite differences of the residual under
+    /// errors of the measured poses of `a` and `b`, in both forms.
+    #[test]
+    fn noise_jacobians_match_finite_differences() {
+        let odometry = iso([2.0, 1.0, 0.5], [0.1, -0.2, 0.9]);
+        let state = State {
+            y: iso([0.2, -0.3, 0.8], [0.4, -0.1, 0.3]),
+            w: iso([1.5, -2.0, 0.7], [-0.2, 0.5, 1.1]),
+            scale: 1.3,
+        };
+        // Consistent data (zero residual), the translation of `a` in its own unit.
+        let mut measured = (state.w * odometry * state.y).inverse();
+        measured.translation.vector /= state.scale;
+        let model = |m: Isometry3<f64>, o: Isometry3<f64>| Trajectories {
+            measured: vec![m],
+            odometry: vec![o],
+            free: [true; 13],
+            length: 1.0,
+            whitening: None,
+        };
+        let residual = |m: Isometry3<f64>, o: Isometry3<f64>| {
+            let (r, t) = model(m, o).residual(&state, 0);
+            SVector::<f64, 6>::from_iterator(r.iter().chain(t.iter()).copied())
+        };
+        let x_rotation = state.y.rotation.inverse();
+        let pose = PoseContext {
+            measured: &measured,
+            odometry: &odometry,
+            x_rotation: &x_rotation,
+            w: &state.w,
+            scale: state.scale,
+        };
+        assert!(residual(measured, odometry).norm() < 1e-14);
+        let h = 1e-6;
+        for sensor in [Sensor::A, Sensor::B] {
+            for frame in [PoseFrame::SensorFromWorld, PoseFrame::WorldFromSensor] {
+                let j = noise_jacobian(sensor, frame, &pose).matrix();
+                for c in 0..6 {
+                    let mut e = SVector::<f64, 6>::zeros();
+                    e[c] = h;
+                    let moved = |e: &SVector<f64, 6>| match sensor {
+                        Sensor::A => residual(perturbed(&measured, frame, e), odometry),
+                        Sensor::B => {
+                            residual(measured, perturbed(&odometry.inverse(), frame, e).inverse())
+                        }
+                    };
+                    let numeric = (moved(&e) - moved(&-e)) / (2.0 * h);
+                    assert_relative_eq!(j.column(c).into_owned(), numeric, epsilon = 1e-7);
+                }
+            }
+        }
+    }
 
     #[test]
     fn jacobian_matches_finite_differences() {
@@ -370,6 +590,7 @@ mod tests {
             ],
             free: [true; 13],
             length: 1.0,
+            whitening: None,
         };
         let state = State {
             y: iso([0.2, -0.3, 0.8], [0.4, -0.1, 0.3]),

@@ -170,8 +170,10 @@ fn guo_planar_under_opencv_noise() {
             for _ in 0..trials {
                 let true_scale = if estimate_scale { 1.7 } else { 1.0 };
                 let sim = planar(&mut r, poses, true, true_scale, Mount::Forward);
-                let mut options = PlanarOptions::default();
-                options.estimate_scale = estimate_scale;
+                let options = PlanarOptions {
+                    estimate_scale,
+                    ..Default::default()
+                };
                 let solution = guo_planar(&motions(&sim), &options).unwrap();
                 let fit = refine_trajectories(
                     &sim.world_from_rig,

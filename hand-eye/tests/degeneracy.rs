@@ -97,9 +97,11 @@ fn small_rotations_are_flagged() {
             Ok(solution) => assert!(solution.uncertainty.translation_std.norm() > 0.05),
             Err(other) => panic!("unexpected {other}"),
         }
-        let mut forced = DaniilidisOptions::default();
-        forced.screening = MotionScreening::new(0.0, 3.0);
-        forced.min_signal_to_noise = 0.0;
+        let forced = DaniilidisOptions {
+            screening: MotionScreening::new(0.0, 3.0),
+            min_signal_to_noise: 0.0,
+            ..Default::default()
+        };
         let solution = daniilidis(&pairs, &forced).unwrap();
         errors.push(translation_error(&solution.a_from_b, &rig_from_odometry));
         stds.push(solution.uncertainty.translation_std.norm());
@@ -202,14 +204,18 @@ fn invalid_and_insufficient_input_is_an_error() {
     ));
 
     // Options outside their domain.
-    let mut options = DaniilidisOptions::default();
-    options.screening = MotionScreening::new(1.0, 0.5);
+    let options = DaniilidisOptions {
+        screening: MotionScreening::new(1.0, 0.5),
+        ..Default::default()
+    };
     assert!(matches!(
         daniilidis(&good, &options),
         Err(HandEyeError::InvalidOptions { .. })
     ));
-    let mut options = PlanarOptions::default();
-    options.height_prior = Some(f64::NAN);
+    let options = PlanarOptions {
+        height_prior: Some(f64::NAN),
+        ..Default::default()
+    };
     assert!(matches!(
         guo_planar(&good, &options),
         Err(HandEyeError::InvalidOptions { .. })
@@ -236,13 +242,17 @@ fn inconsistent_motions_give_negative_discriminants() {
                 MotionPair::new(a, b)
             })
             .collect();
-        let mut options = DaniilidisOptions::default();
-        options.min_signal_to_noise = 0.0;
+        let options = DaniilidisOptions {
+            min_signal_to_noise: 0.0,
+            ..Default::default()
+        };
         if let Err(HandEyeError::NegativeDiscriminant { .. }) = daniilidis(&pairs, &options) {
             daniilidis_count += 1;
         }
-        let mut options = PlanarOptions::default();
-        options.min_signal_to_noise = 0.0;
+        let options = PlanarOptions {
+            min_signal_to_noise: 0.0,
+            ..Default::default()
+        };
         if let Err(HandEyeError::NegativeDiscriminant { .. }) = guo_planar(&pairs, &options) {
             planar_count += 1;
         }

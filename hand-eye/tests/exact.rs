@@ -55,9 +55,11 @@ proptest! {
         let pairs = relative_motions(&sim.world_from_rig, &sim.world_from_odometry, Pairing::All).unwrap();
         let pairs = flip_signs(&mut r, &pairs);
         let truth = sim.rig_from_odometry.inverse();
-        let mut options = PlanarOptions::default();
-        options.estimate_scale = true;
-        options.height_prior = Some(truth.translation.vector.z);
+        let options = PlanarOptions {
+            estimate_scale: true,
+            height_prior: Some(truth.translation.vector.z),
+            ..Default::default()
+        };
         let solution = match guo_planar(&pairs, &options) {
             // Few poses can leave no motion in the 2 to 175 degree range.
             Err(HandEyeError::TooFewMotions { .. } | HandEyeError::NoRotation { .. }) => return Ok(()),
@@ -69,7 +71,10 @@ proptest! {
         prop_assert_eq!(solution.height, Height::Prior(truth.translation.vector.z));
 
         // Without the prior the in-plane part is still exact and the height is flagged.
-        options.height_prior = None;
+        let options = PlanarOptions {
+            height_prior: None,
+            ..options
+        };
         let solution = guo_planar(&pairs, &options).unwrap();
         prop_assert_eq!(solution.height, Height::Unobservable);
         let t = solution.b_from_a.translation.vector;
