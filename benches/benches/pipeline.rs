@@ -18,7 +18,7 @@ use std::hint::black_box;
 use criterion::{Criterion, criterion_group, criterion_main};
 use ibc_bundle_adjust::{RigObservation, RigRefinement, RigRefinementOptions};
 use ibc_camera_models::CameraModel;
-use ibc_pipeline::calib::localization::{CameraLocalizer, match_to_map};
+use ibc_pipeline::calib::localization::match_to_map;
 use ibc_pipeline::calib::quality::{RefinementFacts, assess};
 use ibc_pipeline::calib::refinement::reprojection_residuals;
 use ibc_pipeline::calib::{
@@ -125,10 +125,6 @@ fn stages(c: &mut Criterion) {
             })
         },
     );
-    let localizers: Vec<_> = cameras
-        .iter()
-        .map(|c| CameraLocalizer::new(c, &options.localization).unwrap())
-        .collect();
     g.bench_function("localize 8 images (match + RANSAC PnP)", |b| {
         b.iter(|| {
             images
@@ -138,7 +134,7 @@ fn stages(c: &mut Criterion) {
                     localize_image(
                         &index,
                         &world.map,
-                        &localizers[k],
+                        &cameras[k],
                         features,
                         &options.localization,
                         1,

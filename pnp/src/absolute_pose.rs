@@ -18,7 +18,6 @@ use crate::NonExhaustive;
 use crate::camera_threshold::angle_from_pixels_at;
 use crate::error::{PnpError, Result};
 use crate::ransac::{RansacOptions, robust_pose};
-use crate::refine::RefineOptions;
 use crate::threshold::check_positive;
 
 /// Default inlier threshold of [`absolute_pose`], pixels: 2, the localization threshold of
@@ -33,12 +32,10 @@ pub const ABSOLUTE_POSE_MIN_POINTS: usize = 3;
 /// `AbsolutePoseOptions { max_error_px: 1.5, ..Default::default() }`.
 #[derive(Debug, Clone, PartialEq)]
 pub struct AbsolutePoseOptions {
-    /// RANSAC options, except `threshold` and `refine`, which [`absolute_pose`] sets from
-    /// `max_error_px` and `refine`. Default [`RansacOptions::default`].
+    /// RANSAC options (with the refinement of the final refit, [`RansacOptions::refine`]),
+    /// except `threshold`, which [`absolute_pose`] sets from `max_error_px`. Default
+    /// [`RansacOptions::default`].
     pub ransac: RansacOptions,
-    /// Options of the refinement of the final refit (and its loss, whose scale is in radians).
-    /// Default [`RefineOptions::default`].
-    pub refine: RefineOptions,
     /// Inlier threshold, pixels: the largest reprojection error of an inlier. Turned into the
     /// angle that many pixels span at the camera's principal point, in the direction where
     /// it spans the most ([`crate::angle_from_pixels_at`]), which becomes
@@ -50,11 +47,22 @@ pub struct AbsolutePoseOptions {
     pub non_exhaustive: NonExhaustive,
 }
 
+impl AbsolutePoseOptions {
+    /// Checks every option's range (the RANSAC options' and `max_error_px > 0`); the angle
+    /// `max_error_px` spans is checked per camera by [`absolute_pose`].
+    ///
+    /// # Errors
+    /// [`PnpError::InvalidOption`] or [`PnpError::InvalidLossScale`] naming the option.
+    pub fn validate(&self) -> Result<()> {
+        check_positive("max_error_px", self.max_error_px)?;
+        self.ransac.validate()
+    }
+}
+
 impl Default for AbsolutePoseOptions {
     fn default() -> Self {
         Self {
             ransac: RansacOptions::default(),
-            refine: RefineOptions::default(),
             max_error_px: DEFAULT_MAX_ERROR_PX,
             non_exhaustive: NonExhaustive::VALUE,
         }
@@ -127,7 +135,6 @@ pub fn absolute_pose<C: CameraModel + ?Sized>(
     let threshold = pixel_threshold(camera, options.max_error_px)?;
     let ransac = RansacOptions {
         threshold,
-        refine: options.refine.clone(),
         ..options.ransac.clone()
     };
     ransac.validate()?;

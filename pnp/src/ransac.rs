@@ -120,7 +120,12 @@ impl RansacOptions {
         })
     }
 
-    pub(crate) fn validate(&self) -> Result<()> {
+    /// Checks every option's range: a threshold in `(0, pi/2)`, a confidence in `(0, 1)`,
+    /// `min_iterations <= max_iterations`, at least 3 inliers, and the refinement's options.
+    ///
+    /// # Errors
+    /// [`PnpError::InvalidOption`] or [`PnpError::InvalidLossScale`] naming the option.
+    pub fn validate(&self) -> Result<()> {
         let invalid =
             |name: &'static str, reason: String| Err(PnpError::InvalidOption { name, reason });
         if !(self.threshold > 0.0 && self.threshold < core::f64::consts::FRAC_PI_2) {

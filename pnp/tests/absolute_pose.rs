@@ -281,12 +281,16 @@ fn bad_input_is_a_typed_error_naming_the_culprit() {
         ));
     }
     let options = AbsolutePoseOptions {
-        refine: ibc_pnp::RefineOptions {
-            loss: ibc_pnp::RobustLoss::Huber { scale: -1.0 },
+        ransac: ibc_pnp::RansacOptions {
+            refine: ibc_pnp::RefineOptions {
+                loss: ibc_pnp::RobustLoss::Huber { scale: -1.0 },
+                ..Default::default()
+            },
             ..Default::default()
         },
         ..Default::default()
     };
+    assert!(options.validate().is_err());
     assert_eq!(
         solve(&s.pixels, &s.points, &options).unwrap_err(),
         PnpError::InvalidLossScale { scale: -1.0 }

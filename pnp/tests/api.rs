@@ -37,7 +37,6 @@ fn every_options_struct_is_one_expression() {
     };
     let options = AbsolutePoseOptions {
         ransac: ransac.clone(),
-        refine: refine.clone(),
         max_error_px: 1.5,
         ..Default::default()
     };
@@ -73,7 +72,6 @@ fn defaults_are_the_documented_ones() {
     assert_eq!(ransac.seed, 0);
     let options = AbsolutePoseOptions::default();
     assert_eq!(options.ransac, ransac);
-    assert_eq!(options.refine, refine);
     assert_eq!(options.max_error_px, DEFAULT_MAX_ERROR_PX);
     assert_eq!(DEFAULT_MAX_ERROR_PX, 2.0);
     assert_eq!(RobustLoss::default(), RobustLoss::Trivial);

@@ -18,6 +18,9 @@ pub enum CalibrationError {
         /// What is wrong with its value.
         reason: String,
     },
+    /// The localization's pose options are outside their domain.
+    #[error("invalid option `localization.pose`: {0}")]
+    InvalidPoseOptions(#[source] ibc_pnp::PnpError),
     /// The camera file and the rig log disagree on the number of cameras.
     #[error(
         "the camera file has {cameras} camera(s) but the rig log has {log_cameras}: were the \

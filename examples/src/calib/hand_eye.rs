@@ -5,9 +5,9 @@
 //! the odometry poses the log's `world_from_odometry` of the same frames; `A X = X B` with
 //! `A = rig_k_from_rig_l`, `B = odometry_k_from_odometry_l` and `X = rig_from_odometry`.
 //!
-//! 1. The motions are those between each frame set and each of the next
-//!    [`window`](HandEyeOptions::window) sets (`A = P_k^-1 P_l`, `B = O_k^-1 O_l`), short
-//!    enough that the odometry's drift stays small.
+//! 1. The motions are those between each frame set and each of the next 8 sets
+//!    ([`pairing`](HandEyeOptions::pairing), `ibc_hand_eye::Pairing::Window`: `A = P_k^-1 P_l`,
+//!    `B = O_k^-1 O_l`), short enough that the odometry's drift stays small.
 //! 2. The linear solution: Guo, Mirzaei and Roumeliotis's planar method (ICRA 2012) for a
 //!    ground vehicle, whose odometry cannot tell the rig's height above its plane, or
 //!    Daniilidis's dual quaternions (IJRR 1999) for 6-DoF odometry. Its residuals give the
@@ -16,8 +16,8 @@
 //!    every frame set (`ibc_hand_eye::refine_trajectories`, planar when the odometry is).
 
 use ibc_hand_eye::{
-    DaniilidisOptions, HandEyeError, Height, MotionPair, PlanarOptions, TrajectoryOptions,
-    Uncertainty, daniilidis, guo_planar, refine_trajectories,
+    DaniilidisOptions, HandEyeError, Height, PlanarOptions, TrajectoryOptions, Uncertainty,
+    daniilidis, guo_planar, refine_trajectories, relative_motions,
 };
 use nalgebra::Isometry3;
 
@@ -109,15 +109,7 @@ pub fn calibrate_hand_eye(
     }
     let rig: Vec<Isometry3<f64>> = poses.iter().map(|p| p.0).collect();
     let odometry: Vec<Isometry3<f64>> = poses.iter().map(|p| p.1).collect();
-    let mut motions = Vec::with_capacity(poses.len() * options.window);
-    for k in 0..poses.len() {
-        for l in k + 1..poses.len().min(k + 1 + options.window) {
-            motions.push(MotionPair::new(
-                rig[k].inv_mul(&rig[l]),
-                odometry[k].inv_mul(&odometry[l]),
-            ));
-        }
-    }
+    let motions = relative_motions(&rig, &odometry, options.pairing)?;
     let (linear, height_observable, uncertainty) = match solver {
         HandEyeSolver::Planar => {
             let s = guo_planar(&motions, &PlanarOptions::default())?;

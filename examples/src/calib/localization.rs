@@ -11,19 +11,25 @@
 //! 4. each map point and each feature are kept at most once: the correspondences of all
 //!    nodes are sorted by descriptor distance (then feature and point index) and taken
 //!    greedily;
-//! 5. the keypoints become unit bearings (`unproject_fast`), and RANSAC with P3P, local
-//!    optimization and a final refit (`ibc_pnp::robust_pose`) gives `camera_from_world`, with
-//!    the pixel threshold turned into an angle at the camera's principal point;
-//! 6. fewer than [`min_inliers`](LocalizationOptions::min_inliers) inliers leave the image
+//! 5. `ibc_pnp::absolute_pose` on the keypoints and the map points
+//!    ([`pose`](LocalizationOptions::pose)): the keypoints become unit bearings
+//!    (`unproject_fast`; one the camera cannot unproject is an outlier), the pixel threshold
+//!    an angle at the camera's principal point, and RANSAC with P3P and a final refit gives
+//!    `camera_from_world`;
+//! 6. fewer than the pose options' `min_inliers` correspondences or inliers leave the image
 //!    unlocalized.
 //!
 //! Images are localized in parallel (rayon); each has its own RANSAC seed derived from the
 //! options' seed and its frame and camera, so the result does not depend on the thread count.
 
-use ibc_camera_models::{Camera, CameraModel};
-use ibc_pnp::{RansacOptions, angle_from_pixels_at, robust_pose};
-use ibc_vocab_tree::{Descriptor, MatchOptions, MatchScratch, QueryOptions, match_sets};
-use nalgebra::{Isometry3, Point3, Vector3};
+use std::sync::Arc;
+
+use ibc_camera_models::Camera;
+use ibc_pnp::{AbsolutePoseOptions, PnpError, RansacOptions, absolute_pose};
+use ibc_vocab_tree::{
+    Descriptor, MatchOptions, MatchScratch, QueryOptions, VocabError, match_sets,
+};
+use nalgebra::{Isometry3, Point3, Vector2};
 use rayon::prelude::*;
 
 use super::error::CalibrationError;
@@ -54,7 +60,7 @@ pub struct LocalizedImage {
 }
 
 /// Why an image was not localized.
-#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[derive(Clone, Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum LocalizationFailure {
     /// The image has no feature.
@@ -79,19 +85,24 @@ pub enum LocalizationFailure {
         /// The `min_inliers` option.
         required: usize,
     },
-    /// The pose solver refused the correspondences (degenerate geometry).
+    /// The pose solver refused the correspondences (degenerate geometry, a threshold the
+    /// camera cannot turn into an angle).
     #[error("pose: {0}")]
-    Pose(String),
+    Pose(#[source] PnpError),
     /// The matching options are outside their domain.
     #[error("matching: {0}")]
-    InvalidOption(String),
+    InvalidOption(#[source] Arc<VocabError>),
+    /// The vocabulary could not describe the image (a direct-index level past the tree's
+    /// depth).
+    #[error("vocabulary: {0}")]
+    Vocabulary(#[source] Arc<VocabError>),
 }
 
 /// What happened to one image.
 pub type ImageLocalization = Result<LocalizedImage, LocalizationFailure>;
 
 /// The localization of every image of a log, `images[frame][camera]`.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug)]
 pub struct Localizations {
     /// One entry per frame and camera.
     pub images: Vec<Vec<ImageLocalization>>,
@@ -124,47 +135,6 @@ impl Localizations {
                     .count()
             })
             .collect()
-    }
-}
-
-/// A camera ready for localization: its model and its RANSAC options with the pixel threshold
-/// turned into an angle.
-#[derive(Clone, Debug)]
-pub struct CameraLocalizer<'a> {
-    camera: &'a Camera,
-    ransac: RansacOptions,
-}
-
-impl<'a> CameraLocalizer<'a> {
-    /// The localizer of one camera.
-    ///
-    /// # Errors
-    /// [`CalibrationError::InvalidOption`] if the threshold cannot be turned into an angle
-    /// for this camera.
-    pub fn new(
-        camera: &'a Camera,
-        options: &LocalizationOptions,
-    ) -> Result<Self, CalibrationError> {
-        let threshold =
-            angle_from_pixels_at(camera, &camera.principal_point(), options.threshold_px).map_err(
-                |e| CalibrationError::InvalidOption {
-                    name: "localization.threshold_px",
-                    reason: format!("cannot be turned into an angle for a camera: {e}"),
-                },
-            )?;
-        let mut ransac = RansacOptions::default();
-        ransac.threshold = threshold.min(0.5);
-        ransac.min_inliers = options.min_inliers;
-        ransac.confidence = options.confidence;
-        ransac.max_iterations = options.max_iterations;
-        ransac.min_iterations = options.min_iterations;
-        ransac.local_optimization = options.local_optimization;
-        Ok(Self { camera, ransac })
-    }
-
-    /// The RANSAC threshold, radians.
-    pub fn threshold_rad(&self) -> f64 {
-        self.ransac.threshold
     }
 }
 
@@ -212,14 +182,14 @@ pub fn match_to_map<D: Descriptor>(
     let matching = match_options(options);
     matching
         .validate()
-        .map_err(|e| LocalizationFailure::InvalidOption(e.to_string()))?;
+        .map_err(|e| LocalizationFailure::InvalidOption(Arc::new(e)))?;
     if features.is_empty() {
         return Err(LocalizationFailure::NoFeatures);
     }
     let (bow, feature_vector) = index
         .vocabulary
         .transform_with_features(&features.descriptors, index.direct_index_levels)
-        .map_err(|e| LocalizationFailure::Pose(e.to_string()))?;
+        .map_err(|e| LocalizationFailure::Vocabulary(Arc::new(e)))?;
     let results = index.database.query(
         &bow,
         &QueryOptions::default().with_max_results(options.candidates),
@@ -276,7 +246,7 @@ pub fn match_to_map<D: Descriptor>(
             pairs.push((distance, query_features[r], pool_points[c]));
         };
         match_sets(&query, &pool, &matching, &mut scratch, found)
-            .map_err(|e| LocalizationFailure::InvalidOption(e.to_string()))?;
+            .map_err(|e| LocalizationFailure::InvalidOption(Arc::new(e)))?;
     }
     pairs.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)).then(a.2.cmp(&b.2)));
     let mut feature_used = vec![false; features.len()];
@@ -297,46 +267,56 @@ pub fn match_to_map<D: Descriptor>(
 pub fn localize_image<D: Descriptor>(
     index: &MapIndex<D>,
     map: &Map<D>,
-    localizer: &CameraLocalizer<'_>,
+    camera: &Camera,
     features: &ImageFeatures<D>,
     options: &LocalizationOptions,
     seed: u64,
 ) -> ImageLocalization {
     let correspondences = match_to_map(index, map, features, options)?;
-    let mut bearings: Vec<Vector3<f64>> = Vec::with_capacity(correspondences.len());
+    let mut pixels: Vec<Vector2<f64>> = Vec::with_capacity(correspondences.len());
     let mut points: Vec<Point3<f64>> = Vec::with_capacity(correspondences.len());
     let mut used: Vec<Correspondence> = Vec::with_capacity(correspondences.len());
     for c in &correspondences {
-        let (Some(pixel), Some(point)) = (
+        if let (Some(pixel), Some(point)) = (
             features.keypoints.get(c.feature as usize),
             map.points.get(c.point as usize),
-        ) else {
-            continue;
-        };
-        if let Ok(ray) = localizer.camera.unproject_fast(pixel) {
-            bearings.push(ray.into_inner());
+        ) {
+            pixels.push(*pixel);
             points.push(*point);
             used.push(*c);
         }
     }
-    if used.len() < options.min_inliers {
+    let required = options.pose.ransac.min_inliers;
+    if pixels.len() < required {
         return Err(LocalizationFailure::TooFewMatches {
-            found: used.len(),
-            required: options.min_inliers,
+            found: pixels.len(),
+            required,
         });
     }
-    let mut ransac = localizer.ransac.clone();
-    ransac.seed = seed;
-    match robust_pose(&bearings, &points, &ransac) {
+    let pose = AbsolutePoseOptions {
+        ransac: RansacOptions {
+            seed,
+            ..options.pose.ransac.clone()
+        },
+        ..options.pose.clone()
+    };
+    match absolute_pose(camera, &pixels, &points, &pose) {
         Ok(pose) => Ok(LocalizedImage {
             camera_from_world: pose.camera_from_world,
             inliers: pose.inliers.iter().map(|&i| used[i]).collect(),
-            matches: used.len(),
+            matches: used.len() - pose.unprojection_failures,
         }),
-        Err(ibc_pnp::PnpError::TooFewInliers {
-            found, required, ..
-        }) => Err(LocalizationFailure::TooFewInliers { found, required }),
-        Err(e) => Err(LocalizationFailure::Pose(e.to_string())),
+        Err(PnpError::TooFewInliers { found, .. }) => {
+            Err(LocalizationFailure::TooFewInliers { found, required })
+        }
+        // Fewer correspondences (that the camera can unproject) than inliers are required.
+        Err(
+            PnpError::TooFewUnprojected {
+                unprojected: found, ..
+            }
+            | PnpError::NotEnoughPoints { got: found, .. },
+        ) => Err(LocalizationFailure::TooFewMatches { found, required }),
+        Err(e) => Err(LocalizationFailure::Pose(e)),
     }
 }
 
@@ -372,10 +352,6 @@ pub fn localize_log<D: Descriptor>(
             f.images.len()
         )));
     }
-    let localizers: Vec<CameraLocalizer<'_>> = cameras
-        .iter()
-        .map(|c| CameraLocalizer::new(c, options))
-        .collect::<Result<_, _>>()?;
     let flat: Vec<ImageLocalization> = (0..log.frames.len() * k)
         .into_par_iter()
         .map(|i| {
@@ -383,10 +359,10 @@ pub fn localize_log<D: Descriptor>(
             let result = localize_image(
                 index,
                 map,
-                &localizers[camera],
+                &cameras[camera],
                 &log.frames[frame].images[camera],
                 options,
-                image_seed(options.seed, frame, camera),
+                image_seed(options.pose.ransac.seed, frame, camera),
             );
             progress.advance(1);
             result

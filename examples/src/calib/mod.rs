@@ -47,7 +47,7 @@ pub use localization::{
 pub use map_index::{MapIndex, train_vocabulary};
 pub use options::{
     CalibrationOptions, FrameSetOptions, HandEyeMethod, HandEyeOptions, InitializationOptions,
-    LocalizationOptions, RefinementOptions, VocabularyOptions,
+    LocalizationOptions, RefinementOptions, VocabularyOptions, default_pose_options,
 };
 pub use pipeline::{Accuracy, Calibration, Timing, calibrate, calibrate_with, finite_mean};
 pub use progress::{NoProgress, Progress, Stage};

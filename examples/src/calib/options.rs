@@ -5,6 +5,8 @@
 //! paper gives no value, the value of its implementation (CamOdoCal) or this crate's choice,
 //! said so on the field.
 
+use ibc_hand_eye::Pairing;
+use ibc_pnp::{AbsolutePoseOptions, RansacOptions};
 use ibc_rig_averaging::RigInitOptions;
 
 use super::error::CalibrationError;
@@ -62,25 +64,10 @@ pub struct LocalizationOptions {
     /// Keep a match only when both features are each other's nearest. Default true
     /// (CamOdoCal's cross-check).
     pub mutual_check: bool,
-    /// RANSAC inlier threshold, pixels; turned into an angle per camera at its principal
-    /// point. Default 2 (CamOdoCal's).
-    pub threshold_px: f64,
-    /// An image with fewer inliers stays unlocalized. Default 25 (the paper's).
-    pub min_inliers: usize,
-    /// RANSAC confidence. Default 0.999.
-    pub confidence: f64,
-    /// Most RANSAC iterations. Default 2000 (enough for 10% inliers at the default
-    /// confidence; the adaptive count stops far earlier on a good image).
-    pub max_iterations: usize,
-    /// Fewest RANSAC iterations. Default 20: with the inlier ratios of matched images (50%
-    /// and more) the adaptive count asks for fewer.
-    pub min_iterations: usize,
-    /// Refit every new best RANSAC model on its inliers (LO-RANSAC). Default false: the
-    /// final refit on all inliers gives the same pose, and the local optimization doubles the
-    /// cost of an image.
-    pub local_optimization: bool,
-    /// Seed of every image's RANSAC (mixed with the frame and camera indices). Default 0.
-    pub seed: u64,
+    /// The robust pose of each image from its 2D-3D correspondences
+    /// ([`ibc_pnp::absolute_pose`]: RANSAC over P3P on bearings with a final refit). Default
+    /// [`default_pose_options`]: the paper's and CamOdoCal's values.
+    pub pose: AbsolutePoseOptions,
     /// Keeps the struct open to new fields: build it with `..Default::default()`.
     #[doc(hidden)]
     pub non_exhaustive: crate::NonExhaustive,
@@ -92,15 +79,37 @@ impl Default for LocalizationOptions {
             candidates: 10,
             ratio: 0.7,
             mutual_check: true,
-            threshold_px: 2.0,
+            pose: default_pose_options(),
+            non_exhaustive: crate::NonExhaustive(()),
+        }
+    }
+}
+
+/// The pose options of the localization: `ibc-pnp`'s defaults but for
+///
+/// - the inlier threshold: 2 px, turned into an angle per camera at its principal point
+///   (CamOdoCal's);
+/// - 25 inliers at least, else the image stays unlocalized (the paper's);
+/// - at most 2000 RANSAC iterations (enough for 10% inliers at the confidence 0.999; the
+///   adaptive count stops far earlier on a good image) and at least 20 (with the inlier ratios
+///   of matched images, 50% and more, the adaptive count asks for fewer);
+/// - no local optimization: the final refit on all inliers gives the same pose, and the local
+///   optimization doubles the cost of an image.
+///
+/// The RANSAC seed is mixed with each image's frame and camera indices.
+pub fn default_pose_options() -> AbsolutePoseOptions {
+    AbsolutePoseOptions {
+        max_error_px: 2.0,
+        ransac: RansacOptions {
             min_inliers: 25,
             confidence: 0.999,
             max_iterations: 2000,
             min_iterations: 20,
             local_optimization: false,
             seed: 0,
-            non_exhaustive: crate::NonExhaustive(()),
-        }
+            ..Default::default()
+        },
+        ..Default::default()
     }
 }
 
@@ -216,12 +225,12 @@ pub enum HandEyeMethod {
 pub struct HandEyeOptions {
     /// The method. Default [`HandEyeMethod::Auto`].
     pub method: HandEyeMethod,
-    /// The motions are those between each frame set and each of the next `window` sets.
-    /// Default 8 (this crate's choice): dead-reckoned odometry drifts, so motions over long
-    /// stretches carry its accumulated error, while motions over a few sets rotate enough
-    /// to be informative. On the default scenario the in-plane translation error is 3.3 mm
-    /// with 8 sets, 52 mm with all pairs.
-    pub window: usize,
+    /// Which pairs of frame sets give the motions. Default `Pairing::Window { size: 8 }`:
+    /// between each set and each of the next 8 (this crate's choice). Dead-reckoned odometry
+    /// drifts, so motions over long stretches carry its accumulated error, while motions over
+    /// a few sets rotate enough to be informative. On the default scenario the in-plane
+    /// translation error is 3.3 mm with 8 sets, 52 mm with all pairs.
+    pub pairing: Pairing,
     /// Refine the linear solution on the absolute trajectories of every frame set
     /// (`ibc_hand_eye::refine_trajectories`). Default false: that refinement models
     /// independent noise on each pose, which drifting odometry is not (on the default
@@ -236,7 +245,7 @@ impl Default for HandEyeOptions {
     fn default() -> Self {
         Self {
             method: HandEyeMethod::Auto,
-            window: 8,
+            pairing: Pairing::Window { size: 8 },
             refine: false,
             non_exhaustive: crate::NonExhaustive(()),
         }
@@ -324,24 +333,9 @@ impl CalibrationOptions {
                 format!("{} is outside (0, 1]", l.ratio),
             ));
         }
-        positive("localization.threshold_px", l.threshold_px)?;
-        at_least("localization.min_inliers", l.min_inliers, 4)?;
-        if !(l.confidence > 0.0 && l.confidence < 1.0) {
-            return Err(invalid(
-                "localization.confidence",
-                format!("{} is outside (0, 1)", l.confidence),
-            ));
-        }
-        at_least("localization.max_iterations", l.max_iterations, 1)?;
-        if l.min_iterations > l.max_iterations {
-            return Err(invalid(
-                "localization.min_iterations",
-                format!(
-                    "{} exceeds max_iterations {}",
-                    l.min_iterations, l.max_iterations
-                ),
-            ));
-        }
+        l.pose
+            .validate()
+            .map_err(CalibrationError::InvalidPoseOptions)?;
         at_least("frame_sets.min_cameras", self.frame_sets.min_cameras, 2)?;
         let m = self.frame_sets.min_motion_m;
         if !(m.is_finite() && m >= 0.0) {
@@ -365,7 +359,12 @@ impl CalibrationOptions {
             self.refinement.max_observations_per_image,
             1,
         )?;
-        at_least("hand_eye.window", self.hand_eye.window, 1)?;
+        if let Pairing::Window { size: 0 } = self.hand_eye.pairing {
+            return Err(invalid(
+                "hand_eye.pairing",
+                "a window of 0 sets pairs nothing",
+            ));
+        }
         Ok(())
     }
 }

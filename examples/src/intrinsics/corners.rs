@@ -78,11 +78,12 @@ impl CornerSet {
     /// Parses a corner file's JSON text.
     ///
     /// # Errors
-    /// [`IntrinsicsError::CornerFile`] for malformed JSON (with line and column), a missing,
-    /// unknown or mistyped field, another `format` or `version`, or an invalid `board`.
+    /// [`IntrinsicsError::CornerJson`] for malformed JSON (with line and column) or a missing,
+    /// unknown or mistyped field; [`IntrinsicsError::CornerFile`] for another `format` or
+    /// `version`, or an invalid `board`.
     pub fn from_json_str(text: &str) -> Result<Self, IntrinsicsError> {
-        let file: CornerFile =
-            serde_json::from_str(text).map_err(|e| corner_file_error(e.to_string()))?;
+        let file: CornerFile = serde_json::from_str(text)
+            .map_err(|source| IntrinsicsError::CornerJson { path: None, source })?;
         if file.format != CORNER_FORMAT {
             return Err(corner_file_error(format!(
                 "`format` is `{}`, expected `{CORNER_FORMAT}`",
@@ -167,6 +168,10 @@ impl CornerSet {
             IntrinsicsError::CornerFile { message, .. } => IntrinsicsError::CornerFile {
                 path: Some(path.to_owned()),
                 message,
+            },
+            IntrinsicsError::CornerJson { source, .. } => IntrinsicsError::CornerJson {
+                path: Some(path.to_owned()),
+                source,
             },
             other => other,
         })

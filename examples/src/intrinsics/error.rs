@@ -145,6 +145,15 @@ pub enum IntrinsicsError {
         /// What is wrong with it.
         message: String,
     },
+    /// The corner file is not valid JSON or misses a field (the parser's error gives the line
+    /// and column).
+    #[error("{}: {source}", path.as_ref().map_or_else(|| "corner file".to_owned(), |p| p.display().to_string()))]
+    CornerJson {
+        /// The corner file, when the corners came from one.
+        path: Option<PathBuf>,
+        /// The JSON parser's error.
+        source: serde_json::Error,
+    },
     /// A file could not be read or written (missing, not a regular file, too large, not
     /// text, standard output closed); names the file.
     #[error(transparent)]

@@ -27,12 +27,36 @@ pub enum SimError {
         /// What is wrong, naming the key.
         message: String,
     },
+    /// A scenario file's content is refused by a check that does not name the file: the
+    /// file, then the reason.
+    #[error("{}: {source}", path.as_ref().map_or_else(|| "scenario".to_owned(), |p| p.display().to_string()))]
+    InScenario {
+        /// The scenario file, when the scenario came from one.
+        path: Option<PathBuf>,
+        /// Why.
+        source: Box<SimError>,
+    },
     /// A scenario value is out of its valid range (checked before simulating).
     #[error("invalid scenario: {0}")]
     Invalid(String),
-    /// A rig's camera file could not be read, or a camera was refused.
+    /// A rig's camera file could not be read (the error names the file), or its cameras'
+    /// names are not unique.
     #[error("rig: {0}")]
-    Rig(String),
+    CameraFile(#[from] ibc_camera_models::CameraFileError),
+    /// A rig's camera file holds no camera.
+    #[error("rig: {} has no camera", path.display())]
+    EmptyRig {
+        /// The camera file.
+        path: PathBuf,
+    },
+    /// A built-in camera's parameters were refused (a bug of the built-in rigs).
+    #[error("built-in camera {name}: {source}")]
+    BuiltinCamera {
+        /// The camera's name.
+        name: String,
+        /// Why its parameters were refused.
+        source: ibc_camera_models::ParameterError,
+    },
     /// The environment cannot hold the trajectory asked for.
     #[error("environment: {0}")]
     Environment(String),

@@ -106,13 +106,19 @@ pub fn mount(
 fn kb(name: &str, width: u32, height: u32, params: [f64; 8]) -> Result<Camera, SimError> {
     KannalaBrandt::new(width, height, params)
         .map(Camera::from)
-        .map_err(|e| SimError::Rig(format!("built-in camera {name}: {e}")))
+        .map_err(|source| SimError::BuiltinCamera {
+            name: name.to_owned(),
+            source,
+        })
 }
 
 fn pinhole(name: &str, params: [f64; 8]) -> Result<Camera, SimError> {
     PinholeRadtan::new(752, 480, params)
         .map(Camera::from)
-        .map_err(|e| SimError::Rig(format!("built-in camera {name}: {e}")))
+        .map_err(|source| SimError::BuiltinCamera {
+            name: name.to_owned(),
+            source,
+        })
 }
 
 /// The car: cameras named `front`, `left`, `rear`, `right`, in that order.

@@ -302,7 +302,8 @@ impl Scenario {
     /// a built-in rig, or the camera file read and mounted.
     ///
     /// # Errors
-    /// [`SimError::Rig`] if the camera file cannot be read or has no camera.
+    /// [`SimError::CameraFile`] if the camera file cannot be read, [`SimError::EmptyRig`] if it
+    /// has no camera.
     pub fn map_rig(&self) -> Result<SimRig, SimError> {
         match &self.rig {
             RigSource::Builtin(b) => b.build(),
@@ -317,10 +318,9 @@ impl Scenario {
                     CameraFileFormat::Kalibr => Rig::read_kalibr(path),
                     CameraFileFormat::CamOdoCal => Rig::read_camodocal_dir(path),
                 };
-                let mut rig =
-                    read.map_err(|e| SimError::Rig(format!("{}: {e}", path.display())))?;
+                let mut rig = read?;
                 if rig.cameras.is_empty() {
-                    return Err(SimError::Rig(format!("{} has no camera", path.display())));
+                    return Err(SimError::EmptyRig { path: path.clone() });
                 }
                 let mut max_incidence_rad = Vec::with_capacity(rig.cameras.len());
                 for c in &mut rig.cameras {

@@ -85,6 +85,14 @@ fn odometry_name(kind: OdometryKind) -> &'static str {
 }
 
 impl Parser<'_> {
+    /// An error of a check that does not name the scenario file, with the file.
+    fn wrap(&self, source: SimError) -> SimError {
+        SimError::InScenario {
+            path: self.path.map(Path::to_path_buf),
+            source: Box::new(source),
+        }
+    }
+
     fn err(&self, message: impl Into<String>) -> SimError {
         SimError::Scenario {
             path: self.path.map(Path::to_path_buf),
@@ -192,7 +200,7 @@ impl Parser<'_> {
 
     fn parse(&self, text: &str, base_dir: &Path) -> Result<Scenario, SimError> {
         // Aliases and deep nesting would make the loader expand without bound.
-        ibc_camera_models::check_yaml_input(text).map_err(|e| self.err(e.to_string()))?;
+        ibc_camera_models::check_yaml_input(text).map_err(|e| self.wrap(e.into()))?;
         let docs = YamlLoader::load_from_str(text)
             .map_err(|e| self.err(format!("not valid YAML: {e}")))?;
         let doc = docs
@@ -292,16 +300,16 @@ impl Parser<'_> {
         }
         // Changes last: they name cameras of the rig.
         if let Some(n) = get("changes") {
-            let rig = s.map_rig().map_err(|e| self.err(e.to_string()))?;
+            let rig = s.map_rig().map_err(|e| self.wrap(e))?;
             let names: Vec<&str> = rig.rig.cameras.iter().map(|c| c.name.as_str()).collect();
             s.changes = self.changes(n, &names)?;
         } else if !s.changes.is_empty() {
             // A base's changes must still fit the rig.
-            s.true_rig().map_err(|e| self.err(e.to_string()))?;
+            s.true_rig().map_err(|e| self.wrap(e))?;
         }
-        s.validate().map_err(|e| self.err(e.to_string()))?;
+        s.validate().map_err(|e| self.wrap(e))?;
         // Resolving the rig reads its files now, so a missing file is reported on loading.
-        s.map_rig().map_err(|e| self.err(e.to_string()))?;
+        s.map_rig().map_err(|e| self.wrap(e))?;
         Ok(s)
     }
 

@@ -170,8 +170,8 @@ impl SimulatedWorld {
     /// Simulates a scenario (see [`SimulatedWorld`] for the steps).
     ///
     /// # Errors
-    /// [`SimError::Invalid`] for an invalid scenario, [`SimError::Rig`] if its camera files
-    /// cannot be read, [`SimError::Environment`] if the environment cannot be built.
+    /// [`SimError::Invalid`] for an invalid scenario, [`SimError::CameraFile`] or
+    /// [`SimError::EmptyRig`] if its camera files cannot be read, [`SimError::Environment`] if the environment cannot be built.
     pub fn simulate(scenario: &Scenario) -> Result<Self, SimError> {
         scenario.validate()?;
         let map_rig = scenario.map_rig()?;
@@ -342,9 +342,7 @@ impl SimulatedWorld {
             path: files.truth.clone(),
             source,
         })?;
-        self.map_rig
-            .check_names()
-            .map_err(|e| SimError::Rig(e.to_string()))?;
+        self.map_rig.check_names()?;
         let cameras = self.map_rig.to_kalibr_string();
         let mut staged = StagedFiles::new(dir)?;
         staged.stage(&files.map, &map)?;
