@@ -118,7 +118,7 @@ fn corner_files_round_trip_and_malformed_ones_are_named() {
     std::fs::write(&path, cut).unwrap();
     let err = CornerSet::read(&path).unwrap_err();
     let message = err.to_string();
-    assert!(matches!(err, IntrinsicsError::CornerFile { .. }));
+    assert!(matches!(err, IntrinsicsError::CornerJson { .. }));
     assert!(
         message.contains("corners.json") && message.contains("line"),
         "{message}"
