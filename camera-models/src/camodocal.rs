@@ -244,7 +244,8 @@ pub fn format_camera(name: &str, camera: &Camera) -> String {
 /// [`MAX_FILE_BYTES`](crate::MAX_FILE_BYTES)).
 ///
 /// # Errors
-/// [`CameraFileError::Io`], [`CameraFileError::NotRegularFile`] or [`CameraFileError::TooLarge`], or an error of
+/// [`CameraFileError::Io`] (not a regular file, too large, not text, or the
+/// operating system's error), or an error of
 /// [`parse_camera`] wrapped in [`CameraFileError::InFile`] with the path.
 pub fn read_camera(path: impl AsRef<Path>) -> Result<NamedCamera, CameraFileError> {
     let path = path.as_ref();

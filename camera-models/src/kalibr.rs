@@ -226,7 +226,8 @@ impl Rig {
     /// [`MAX_FILE_BYTES`](crate::MAX_FILE_BYTES)).
     ///
     /// # Errors
-    /// [`CameraFileError::Io`], [`CameraFileError::NotRegularFile`] or [`CameraFileError::TooLarge`], or an
+    /// [`CameraFileError::Io`] (not a regular file, too large, not text, or the
+    /// operating system's error), or an
     /// error of [`from_kalibr_str`](Self::from_kalibr_str) wrapped in [`CameraFileError::InFile`]
     /// with the path.
     pub fn read_kalibr(path: impl AsRef<Path>) -> Result<Self, CameraFileError> {
