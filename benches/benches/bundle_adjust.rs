@@ -11,7 +11,7 @@ use std::time::Duration;
 
 use criterion::{BatchSize, Criterion, criterion_group, criterion_main};
 use ibc_bundle_adjust::{
-    BalProblem, LinearSolverType, Loss, RigObservation, RigRefinement, RigRefinementOptions,
+    BalProblem, LinearSolverType, RigObservation, RigRefinement, RigRefinementOptions, RobustLoss,
     SolverOptions,
 };
 use ibc_camera_models::{Camera, CameraModel, KannalaBrandt, PinholeRadtan};
@@ -29,15 +29,21 @@ fn problem49() -> BalProblem {
 }
 
 fn options(solver: LinearSolverType, threads: usize, full_budget: bool) -> SolverOptions {
-    let mut o = SolverOptions::default();
-    o.linear_solver = solver;
-    o.num_threads = threads;
+    let o = SolverOptions {
+        linear_solver: solver,
+        num_threads: threads,
+        ..Default::default()
+    };
     if full_budget {
-        o.function_tolerance = 0.0;
-        o.gradient_tolerance = 0.0;
-        o.parameter_tolerance = 0.0;
+        SolverOptions {
+            function_tolerance: 0.0,
+            gradient_tolerance: 0.0,
+            parameter_tolerance: 0.0,
+            ..o
+        }
+    } else {
+        o
     }
-    o
 }
 
 fn bal49(c: &mut Criterion) {
@@ -47,7 +53,7 @@ fn bal49(c: &mut Criterion) {
         .warm_up_time(Duration::from_secs(1))
         .measurement_time(Duration::from_secs(12));
     g.bench_function("cost_pass", |b| {
-        b.iter(|| black_box(bal.cost(Loss::Trivial).unwrap()))
+        b.iter(|| black_box(bal.cost(RobustLoss::Trivial).unwrap()))
     });
     let cases = [
         ("dense_50it_1t", LinearSolverType::DenseSchur, 1, true),
@@ -74,7 +80,7 @@ fn bal49(c: &mut Criterion) {
         g.bench_function(name, |b| {
             b.iter_batched(
                 || bal.clone(),
-                |mut p| black_box(p.solve(Loss::Trivial, &o).unwrap().final_cost),
+                |mut p| black_box(p.solve(RobustLoss::Trivial, &o).unwrap().final_cost),
                 BatchSize::LargeInput,
             )
         });
@@ -197,9 +203,14 @@ fn rig(c: &mut Criterion) {
     let mut g = c.benchmark_group("rig_4x500x40000");
     g.sample_size(20).measurement_time(Duration::from_secs(8));
     for threads in [1, 2] {
-        let mut o = RigRefinementOptions::default();
-        o.covariance = false;
-        o.solver.num_threads = threads;
+        let o = RigRefinementOptions {
+            covariance: false,
+            solver: SolverOptions {
+                num_threads: threads,
+                ..Default::default()
+            },
+            ..Default::default()
+        };
         g.bench_function(format!("refine_{threads}t"), |b| {
             b.iter(|| black_box(scene.refine(&o).unwrap().final_rms))
         });

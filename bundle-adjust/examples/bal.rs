@@ -11,7 +11,7 @@ use std::process::ExitCode;
 use std::time::Instant;
 
 use clap::{Parser, ValueEnum};
-use ibc_bundle_adjust::{BalProblem, LinearSolverType, Loss, SolverOptions};
+use ibc_bundle_adjust::{BalProblem, LinearSolverType, RobustLoss, SolverOptions};
 
 #[derive(Debug, Clone, Copy, ValueEnum)]
 enum LossArg {
@@ -66,10 +66,16 @@ struct Args {
 fn main() -> ExitCode {
     let args = Args::parse();
     let loss = match args.loss {
-        LossArg::None => Loss::Trivial,
-        LossArg::Huber => Loss::Huber(args.loss_scale),
-        LossArg::Cauchy => Loss::Cauchy(args.loss_scale),
-        LossArg::SoftL1 => Loss::SoftL1(args.loss_scale),
+        LossArg::None => RobustLoss::Trivial,
+        LossArg::Huber => RobustLoss::Huber {
+            scale: args.loss_scale,
+        },
+        LossArg::Cauchy => RobustLoss::Cauchy {
+            scale: args.loss_scale,
+        },
+        LossArg::SoftL1 => RobustLoss::SoftL1 {
+            scale: args.loss_scale,
+        },
     };
     let read_start = Instant::now();
     let mut bal = match BalProblem::from_file(&args.file) {
@@ -83,21 +89,24 @@ fn main() -> ExitCode {
     if args.normalize {
         bal.normalize();
     }
-    let mut options = SolverOptions::default();
-    options.max_iterations = args.iterations;
-    options.num_threads = args.threads;
-    options.log_to_stderr = args.log;
-    options.linear_solver = match args.solver {
-        SolverArg::Auto => LinearSolverType::Auto,
-        SolverArg::Dense => LinearSolverType::DenseSchur,
-        SolverArg::Sparse => LinearSolverType::SparseSchur,
-        SolverArg::Iterative => LinearSolverType::IterativeSchur,
+    let defaults = SolverOptions::default();
+    // A zero tolerance never stops the solve.
+    let tolerance = |default: f64| if args.no_tolerances { 0.0 } else { default };
+    let options = SolverOptions {
+        max_iterations: args.iterations,
+        num_threads: args.threads,
+        log_to_stderr: args.log,
+        linear_solver: match args.solver {
+            SolverArg::Auto => LinearSolverType::Auto,
+            SolverArg::Dense => LinearSolverType::DenseSchur,
+            SolverArg::Sparse => LinearSolverType::SparseSchur,
+            SolverArg::Iterative => LinearSolverType::IterativeSchur,
+        },
+        function_tolerance: tolerance(defaults.function_tolerance),
+        gradient_tolerance: tolerance(defaults.gradient_tolerance),
+        parameter_tolerance: tolerance(defaults.parameter_tolerance),
+        ..defaults
     };
-    if args.no_tolerances {
-        options.function_tolerance = 0.0;
-        options.gradient_tolerance = 0.0;
-        options.parameter_tolerance = 0.0;
-    }
     let start = Instant::now();
     let summary = match bal.solve(loss, &options) {
         Ok(s) => s,

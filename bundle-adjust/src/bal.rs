@@ -12,13 +12,19 @@ use std::path::Path;
 
 use nalgebra::{Matrix2x3, Matrix3, Vector3};
 
+use crate::RobustLoss;
+use crate::corrector::validate_loss;
 use crate::cost::{CostFunction, Jacobians};
-use crate::error::{BundleAdjustError, Result};
-use crate::loss::Loss;
+use crate::error::{BalFileError, BalSyntaxError, BundleAdjustError, Result};
 use crate::manifold::skew;
 use crate::options::SolverOptions;
 use crate::problem::{ParameterBlockId, Problem};
 use crate::summary::Summary;
+
+/// Largest BAL file [`BalProblem::from_file`] reads: 16 GiB, several times the largest
+/// problem of the BAL collection (a bound so that a wrong path, such as a device, cannot
+/// exhaust memory).
+pub const BAL_MAX_FILE_BYTES: u64 = 16 << 30;
 
 /// One observation of a BAL file.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -77,48 +83,49 @@ impl<'a> Tokens<'a> {
         }
     }
 
-    fn parse<T: core::str::FromStr>(&mut self, what: &str) -> Result<(usize, T)> {
-        let (line, token) = self
-            .next_token()
-            .ok_or_else(|| BundleAdjustError::BalParse {
-                line: 0,
-                reason: format!("the file ends before {what}"),
-            })?;
+    fn parse<T: core::str::FromStr>(&mut self, expected: &'static str) -> Result<(usize, T)> {
+        let (line, token) = self.next_token().ok_or(BundleAdjustError::BalParse {
+            line: 0,
+            source: BalSyntaxError::UnexpectedEnd { expected },
+        })?;
         token
             .parse()
             .map(|v| (line, v))
             .map_err(|_| BundleAdjustError::BalParse {
                 line,
-                reason: format!("cannot read {what} from `{token}`"),
+                source: BalSyntaxError::Malformed {
+                    expected,
+                    token: token.to_owned(),
+                },
             })
     }
 
-    fn finite(&mut self, what: &str) -> Result<f64> {
-        let (line, v): (usize, f64) = self.parse(what)?;
+    fn finite(&mut self, expected: &'static str) -> Result<f64> {
+        let (line, v): (usize, f64) = self.parse(expected)?;
         if v.is_finite() {
             Ok(v)
         } else {
             Err(BundleAdjustError::BalParse {
                 line,
-                reason: format!("{what} is not finite"),
+                source: BalSyntaxError::NonFinite { expected },
             })
         }
     }
 }
 
 impl BalProblem {
-    /// Reads a BAL file.
+    /// Reads a BAL file (a regular file of at most [`BAL_MAX_FILE_BYTES`]).
     ///
     /// # Errors
-    /// [`BundleAdjustError::Io`] if the file cannot be read, otherwise as
-    /// [`BalProblem::parse`].
-    pub fn from_file(path: impl AsRef<Path>) -> Result<Self> {
+    /// [`BalFileError::Io`] naming the file if it cannot be read,
+    /// [`BalFileError::Parse`] naming it and carrying [`BalProblem::parse`]'s error otherwise.
+    pub fn from_file(path: impl AsRef<Path>) -> Result<Self, BalFileError> {
         let path = path.as_ref();
-        let text = std::fs::read_to_string(path).map_err(|e| BundleAdjustError::Io {
-            path: path.display().to_string(),
-            reason: e.to_string(),
-        })?;
-        Self::parse(&text)
+        let text = ibc_camera_models::io::read_text(path, BAL_MAX_FILE_BYTES)?;
+        Self::parse(&text).map_err(|source| BalFileError::Parse {
+            path: path.to_owned(),
+            source,
+        })
     }
 
     /// Parses the text of a BAL file.
@@ -138,9 +145,12 @@ impl BalProblem {
             if camera >= num_cameras || point >= num_points {
                 return Err(BundleAdjustError::BalParse {
                     line,
-                    reason: format!(
-                        "observation of camera {camera} and point {point} is out of range ({num_cameras} cameras, {num_points} points)"
-                    ),
+                    source: BalSyntaxError::ObservationOutOfRange {
+                        camera,
+                        point,
+                        cameras: num_cameras,
+                        points: num_points,
+                    },
                 });
             }
             let x = t.finite("an observed x")?;
@@ -170,7 +180,9 @@ impl BalProblem {
         if let Some((line, token)) = t.next_token() {
             return Err(BundleAdjustError::BalParse {
                 line,
-                reason: format!("unexpected data `{token}` after the last point"),
+                source: BalSyntaxError::TrailingData {
+                    token: token.to_owned(),
+                },
             });
         }
         Ok(Self {
@@ -181,26 +193,23 @@ impl BalProblem {
     }
 
     /// The residual (predicted minus observed pixel) of observation `index`, or `None` for an
-    /// index out of range.
+    /// index out of range or an observation of a camera or point that does not exist.
     #[must_use]
     pub fn residual(&self, index: usize) -> Option<[f64; 2]> {
         let o = self.observations.get(index)?;
+        let camera = self.cameras.get(o.camera)?;
+        let point = self.points.get(o.point)?;
         let cost = BalReprojection::new(o.pixel);
         let mut r = [0.0; 2];
-        cost.evaluate(
-            &[&self.cameras[o.camera], &self.points[o.point]],
-            &mut r,
-            None,
-        )
-        .then_some(r)
+        cost.evaluate(&[camera, point], &mut r, None).then_some(r)
     }
 
     /// Cost ½ Σ ρ(|r|²) over all observations.
     ///
     /// # Errors
     /// [`BundleAdjustError::InvalidLossScale`] for an invalid loss.
-    pub fn cost(&self, loss: Loss) -> Result<f64> {
-        loss.validate()?;
+    pub fn cost(&self, loss: RobustLoss) -> Result<f64> {
+        validate_loss(&loss)?;
         Ok((0..self.observations.len())
             .filter_map(|i| self.residual(i))
             .map(|r| 0.5 * loss.evaluate(r[0] * r[0] + r[1] * r[1])[0])
@@ -253,9 +262,12 @@ impl BalProblem {
     /// elimination, and one [`BalReprojection`] residual per observation with `loss`.
     ///
     /// # Errors
-    /// [`BundleAdjustError::InvalidLossScale`] for an invalid loss, or
-    /// [`BundleAdjustError::NonFiniteParameter`] for a non-finite value.
-    pub fn to_problem(&self, loss: Loss) -> Result<(Problem, BalBlocks)> {
+    /// [`BundleAdjustError::InvalidLossScale`] for an invalid loss,
+    /// [`BundleAdjustError::NonFiniteParameter`] for a non-finite value,
+    /// [`BundleAdjustError::NonFiniteObservation`] for a non-finite pixel, or
+    /// [`BundleAdjustError::IndexOutOfRange`] for an observation of a camera or point that
+    /// does not exist.
+    pub fn to_problem(&self, loss: RobustLoss) -> Result<(Problem, BalBlocks)> {
         let mut problem = Problem::new();
         let cameras = self
             .cameras
@@ -274,12 +286,19 @@ impl BalProblem {
             if !(o.pixel[0].is_finite() && o.pixel[1].is_finite()) {
                 return Err(BundleAdjustError::NonFiniteObservation { index: i });
             }
-            let (Some(&c), Some(&p)) = (cameras.get(o.camera), points.get(o.point)) else {
-                return Err(BundleAdjustError::InvalidProblem(format!(
-                    "observation {i} refers to camera {} or point {} that does not exist",
-                    o.camera, o.point
-                )));
+            let out_of_range = |target, index, count| BundleAdjustError::IndexOutOfRange {
+                what: "observation",
+                position: i,
+                target,
+                index,
+                count,
             };
+            let c = *cameras
+                .get(o.camera)
+                .ok_or_else(|| out_of_range("camera", o.camera, cameras.len()))?;
+            let p = *points
+                .get(o.point)
+                .ok_or_else(|| out_of_range("point", o.point, points.len()))?;
             problem.add_residual_block(BalReprojection::new(o.pixel), loss, &[c, p])?;
         }
         Ok((problem, BalBlocks { cameras, points }))
@@ -304,7 +323,7 @@ impl BalProblem {
     ///
     /// # Errors
     /// As [`BalProblem::to_problem`] and [`Problem::solve`].
-    pub fn solve(&mut self, loss: Loss, options: &SolverOptions) -> Result<Summary> {
+    pub fn solve(&mut self, loss: RobustLoss, options: &SolverOptions) -> Result<Summary> {
         let (mut problem, blocks) = self.to_problem(loss)?;
         let summary = problem.solve(options)?;
         self.read_back(&problem, &blocks)?;

@@ -134,3 +134,48 @@ impl<'a> Jacobians<'a> {
         self.shape_error
     }
 }
+
+/// Checks whether residual blocks can be evaluated as the solver's first evaluation needs:
+/// the cost function returns true, writes every Jacobian block with the right shape, and
+/// everything it writes is finite. Reuses its buffers from one check to the next.
+#[derive(Debug, Default)]
+pub(crate) struct EvaluationProbe {
+    slots: Vec<JacobianSlot>,
+    residuals: Vec<f64>,
+    jacobian: Vec<f64>,
+}
+
+impl EvaluationProbe {
+    /// Whether `cost` can be evaluated at `parameters`, with every Jacobian block wanted
+    /// (`tangents` gives each argument's tangent size).
+    pub(crate) fn evaluates(
+        &mut self,
+        cost: &dyn CostFunction,
+        parameters: &[&[f64]],
+        tangents: &[usize],
+    ) -> bool {
+        let rows = cost.num_residuals();
+        self.slots.clear();
+        let mut offset = 0usize;
+        for &t in tangents {
+            let (Ok(off), Ok(cols)) = (u32::try_from(offset), u32::try_from(t)) else {
+                return false;
+            };
+            self.slots.push(JacobianSlot {
+                offset: off,
+                cols,
+                wanted: true,
+            });
+            offset += rows * t;
+        }
+        self.residuals.clear();
+        self.residuals.resize(rows, 0.0);
+        self.jacobian.clear();
+        self.jacobian.resize(offset, 0.0);
+        let mut jacobians = Jacobians::new(&mut self.jacobian, &self.slots, rows);
+        let ok = cost.evaluate(parameters, &mut self.residuals, Some(&mut jacobians));
+        ok && jacobians.shape_error().is_none()
+            && self.residuals.iter().all(|v| v.is_finite())
+            && self.jacobian.iter().all(|v| v.is_finite())
+    }
+}

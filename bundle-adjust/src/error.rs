@@ -1,10 +1,16 @@
-//! The crate's error type.
+//! The crate's error types.
+
+use std::path::PathBuf;
 
 use thiserror::Error;
 
+/// `Result` with [`BundleAdjustError`] as the default error.
+pub type Result<T, E = BundleAdjustError> = std::result::Result<T, E>;
+
 /// Everything that can go wrong when building or solving a problem.
 ///
-/// Every variant says what was wrong with the input; caller input never causes a panic.
+/// Every variant says what was wrong with the input and names it (block, residual,
+/// observation, camera, frame set, image, point or option); caller input never causes a panic.
 #[derive(Debug, Clone, PartialEq, Error)]
 #[non_exhaustive]
 pub enum BundleAdjustError {
@@ -23,6 +29,87 @@ pub enum BundleAdjustError {
     NonFiniteObservation {
         /// Index of the observation.
         index: usize,
+    },
+    /// A pose or point of a problem description (an extrinsic, a rig pose, an image pose, a
+    /// point) has a NaN or infinite component.
+    #[error("{what}[{index}] is not finite")]
+    NonFiniteInput {
+        /// The field holding it: `rig_from_camera`, `world_from_rig`, `camera_from_world` or
+        /// `points`.
+        what: &'static str,
+        /// Its index in that field.
+        index: usize,
+    },
+    /// Two parts of a problem description that must have one entry each for the same things
+    /// have different lengths.
+    #[error("{what} has {got} entries, {expected} expected")]
+    LengthMismatch {
+        /// The field (or argument) with the wrong length, for instance `rig_from_camera`.
+        what: &'static str,
+        /// The length it must have (the number of cameras, images, ...).
+        expected: usize,
+        /// Its length.
+        got: usize,
+    },
+    /// An index in a problem description points past the end of what it indexes.
+    #[error("{what} {position} refers to {target} {index}, but there are {count}")]
+    IndexOutOfRange {
+        /// What holds the index: `observation` or `image`.
+        what: &'static str,
+        /// Position of that observation or image.
+        position: usize,
+        /// What the index is of: `camera`, `frame set`, `image` or `point`.
+        target: &'static str,
+        /// The index.
+        index: usize,
+        /// Number of those things.
+        count: usize,
+    },
+    /// A camera has no observation that can be evaluated at the initial estimate, so nothing
+    /// determines it (in a rig refinement its extrinsic; in a bundle adjustment with
+    /// [`crate::BundleAdjustmentOptions::optimize_intrinsics`] its intrinsics).
+    #[error(
+        "camera {camera} has no usable observation ({excluded} excluded: they cannot be evaluated at the initial estimate)"
+    )]
+    CameraWithoutObservations {
+        /// Index of the camera.
+        camera: usize,
+        /// How many of its observations were excluded (behind the camera, outside the
+        /// model's domain or not finite at the start); 0 when it had none.
+        excluded: usize,
+    },
+    /// A frame set of a rig refinement has no observation that can be evaluated at the
+    /// initial estimate, so nothing determines its rig pose.
+    #[error(
+        "frame set {frame} has no usable observation ({excluded} excluded: they cannot be evaluated at the initial estimate)"
+    )]
+    FrameWithoutObservations {
+        /// Index of the frame set.
+        frame: usize,
+        /// How many of its observations were excluded; 0 when it had none.
+        excluded: usize,
+    },
+    /// An image of a bundle adjustment whose pose is not held fixed has no observation that
+    /// can be evaluated at the initial estimate, so nothing determines its pose.
+    #[error(
+        "image {image} has no usable observation ({excluded} excluded: they cannot be evaluated at the initial estimate)"
+    )]
+    ImageWithoutObservations {
+        /// Index of the image.
+        image: usize,
+        /// How many of its observations were excluded; 0 when it had none.
+        excluded: usize,
+    },
+    /// A point of a bundle adjustment has no observation that can be evaluated at the
+    /// initial estimate, so nothing determines it.
+    #[error(
+        "point {point} has no usable observation ({excluded} excluded: they cannot be evaluated at the initial estimate)"
+    )]
+    PointWithoutObservations {
+        /// Index of the point.
+        point: usize,
+        /// How many of its observations were excluded; 0 when it had none.
+        excluded: usize,
     },
     /// A parameter block id does not belong to this problem.
     #[error("parameter block {block} does not exist: the problem has {count} parameter blocks")]
@@ -101,15 +188,18 @@ pub enum BundleAdjustError {
         /// Position of the parameter block in the residual's argument list.
         position: usize,
     },
-    /// A loss scale is not a finite positive number.
-    #[error("loss scale {0} is invalid: it must be finite and positive")]
-    InvalidLossScale(f64),
-    /// A solver option is out of its valid domain.
-    #[error("invalid solver option `{name}`: {reason}")]
+    /// The scale of a robust loss ([`crate::RobustLoss`]) is not a finite positive number.
+    #[error("the scale of the robust loss must be finite and positive, got {scale}")]
+    InvalidLossScale {
+        /// The scale given.
+        scale: f64,
+    },
+    /// A solver or problem option is out of its valid domain.
+    #[error("invalid option `{name}`: {reason}")]
     InvalidOption {
-        /// Name of the option.
+        /// Name of the option (the field name).
         name: &'static str,
-        /// What is wrong with it.
+        /// What is wrong with it, with the value.
         reason: String,
     },
     /// The eliminated group is not an independent set: two eliminated blocks share a residual
@@ -136,29 +226,120 @@ pub enum BundleAdjustError {
         /// Id of the block.
         block: usize,
     },
+    /// The sparse symbolic factorization of the reduced system failed (its indices overflow
+    /// or memory ran out).
+    #[error("the sparse factorization of the {unknowns}-unknown reduced system failed: {source}")]
+    SparseFactorization {
+        /// Number of unknowns of the reduced system.
+        unknowns: usize,
+        /// faer's error.
+        #[source]
+        source: faer::sparse::FaerError,
+    },
+    /// The problem is too large: an offset or index of its compiled form does not fit the
+    /// solver's 32-bit indices.
+    #[error("the problem is too large: index {index} exceeds the supported 2^32")]
+    TooLarge {
+        /// The index that does not fit.
+        index: usize,
+    },
     /// A worker thread pool could not be created.
-    #[error("could not create a thread pool: {0}")]
-    ThreadPool(String),
-    /// A BAL file could not be parsed.
-    #[error("BAL file, line {line}: {reason}")]
+    #[error("could not create a pool of {threads} threads: {reason}")]
+    ThreadPool {
+        /// The number of threads asked for ([`crate::SolverOptions::num_threads`]).
+        threads: usize,
+        /// rayon's message (its error type is not part of this crate's API, since `rayon` is
+        /// an optional dependency).
+        reason: String,
+    },
+    /// The text of a BAL file is malformed.
+    #[error("BAL file, line {line}: {source}")]
     BalParse {
-        /// One-based line number.
+        /// One-based line number (0 when the file ends too early).
         line: usize,
-        /// What was wrong.
-        reason: String,
+        /// What is wrong there.
+        #[source]
+        source: BalSyntaxError,
     },
-    /// Reading a file failed.
-    #[error("cannot read {path}: {reason}")]
-    Io {
-        /// The path.
-        path: String,
-        /// The operating system's message.
-        reason: String,
+    /// The refined intrinsics of a camera were refused by its model (they left the model's
+    /// valid domain).
+    #[error("the refined intrinsics of camera {camera} were refused: {source}")]
+    RefinedIntrinsicsRejected {
+        /// Index of the camera.
+        camera: usize,
+        /// The model's reason.
+        #[source]
+        source: ibc_camera_models::ParameterError,
     },
-    /// A rig or full bundle-adjustment problem description is inconsistent.
-    #[error("invalid problem description: {0}")]
-    InvalidProblem(String),
+    /// An internal invariant does not hold: a bug of this crate, to be reported.
+    #[error("internal error of ibc-bundle-adjust (please report): {reason}")]
+    Internal {
+        /// What went wrong.
+        reason: &'static str,
+    },
 }
 
-/// Shorthand for results of this crate.
-pub type Result<T> = core::result::Result<T, BundleAdjustError>;
+/// What is wrong at a line of a BAL file ([`BundleAdjustError::BalParse`]).
+#[derive(Debug, Clone, PartialEq, Eq, Error)]
+#[non_exhaustive]
+pub enum BalSyntaxError {
+    /// The file ends before a value it must hold.
+    #[error("the file ends before {expected}")]
+    UnexpectedEnd {
+        /// The value that is missing, for instance `a camera parameter`.
+        expected: &'static str,
+    },
+    /// A token is not a number of the expected kind.
+    #[error("cannot read {expected} from `{token}`")]
+    Malformed {
+        /// The value expected there.
+        expected: &'static str,
+        /// The token found.
+        token: String,
+    },
+    /// A number is NaN or infinite.
+    #[error("{expected} is not finite")]
+    NonFinite {
+        /// The value expected there.
+        expected: &'static str,
+    },
+    /// An observation names a camera or point beyond the counts in the header.
+    #[error(
+        "observation of camera {camera} and point {point} is out of range ({cameras} cameras, {points} points)"
+    )]
+    ObservationOutOfRange {
+        /// The camera index read.
+        camera: usize,
+        /// The point index read.
+        point: usize,
+        /// Number of cameras in the header.
+        cameras: usize,
+        /// Number of points in the header.
+        points: usize,
+    },
+    /// Data follows the last point.
+    #[error("unexpected data `{token}` after the last point")]
+    TrailingData {
+        /// The first extra token.
+        token: String,
+    },
+}
+
+/// Why [`crate::BalProblem::from_file`] failed.
+#[derive(Debug, Error)]
+#[non_exhaustive]
+pub enum BalFileError {
+    /// The file could not be read (missing, not a regular file, too large, not text, or the
+    /// operating system's error); names the file.
+    #[error(transparent)]
+    Io(#[from] ibc_camera_models::io::IoError),
+    /// The file was read but its text is not a valid BAL problem.
+    #[error("{}: {source}", path.display())]
+    Parse {
+        /// The file.
+        path: PathBuf,
+        /// Why it was rejected ([`BundleAdjustError::BalParse`]).
+        #[source]
+        source: BundleAdjustError,
+    },
+}

@@ -7,9 +7,9 @@
 //! residuals that end on chunk boundaries; their sums are combined in task order, so results
 //! do not depend on the thread count.
 
+use crate::corrector::Corrector;
 use crate::cost::Jacobians;
 use crate::kernels::{Shape, with_shape};
-use crate::loss::Corrector;
 use crate::parallel::{Executor, split_at_offsets};
 use crate::problem::Problem;
 use crate::program::Program;

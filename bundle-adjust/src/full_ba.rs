@@ -13,19 +13,27 @@
 //! removes rotation and translation, two remove the scale as well. A remaining scale
 //! freedom is harmless to Levenberg-Marquardt (the damping keeps the step finite) but leaves
 //! the covariance undefined.
+//!
+//! **Bad starts.** An observation that cannot be evaluated at the initial estimate (its point
+//! behind the camera, outside the camera model's domain, or a non-finite residual or
+//! Jacobian) is left out and reported in [`BundleAdjustmentResult::excluded_observations`].
+//! An image whose pose is free, a point, or (with
+//! [`BundleAdjustmentOptions::optimize_intrinsics`]) a camera left without observations is a
+//! typed error naming it.
 
 use std::sync::{Arc, RwLock};
 
 use ibc_camera_models::{Camera, CameraModel};
 use nalgebra::{Isometry3, Matrix3, SMatrix, Vector2, Vector3};
 
-use crate::cost::{CostFunction, Jacobians};
+use crate::corrector::validate_loss;
+use crate::cost::{CostFunction, EvaluationProbe, Jacobians};
 use crate::error::{BundleAdjustError, Result};
-use crate::loss::Loss;
 use crate::manifold::{Se3Manifold, se3_from_params, se3_from_unit_params, se3_to_params, skew};
 use crate::options::SolverOptions;
 use crate::problem::{ParameterBlockId, Problem};
 use crate::summary::Summary;
+use crate::{NonExhaustive, RobustLoss};
 
 /// One observation of point `point` in image `image`.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -54,26 +62,42 @@ pub struct BundleAdjustment {
 }
 
 /// Options of [`BundleAdjustment::solve`].
+///
+/// ```
+/// use ibc_bundle_adjust::{BundleAdjustmentOptions, RobustLoss};
+///
+/// let options = BundleAdjustmentOptions {
+///     optimize_intrinsics: true,
+///     fixed_images: vec![0, 1],
+///     loss: RobustLoss::Trivial,
+///     ..Default::default()
+/// };
+/// assert_eq!(options.solver.max_iterations, 50);
+/// ```
 #[derive(Debug, Clone, PartialEq)]
-#[non_exhaustive]
 pub struct BundleAdjustmentOptions {
-    /// Robust loss on the squared pixel error (default: Cauchy with a = 1 pixel).
-    pub loss: Loss,
+    /// Robust loss on the squared pixel error (default `RobustLoss::Cauchy { scale: 1.0 }`,
+    /// a = 1 pixel).
+    pub loss: RobustLoss,
     /// Optimize the intrinsics too (default false).
     pub optimize_intrinsics: bool,
-    /// Images whose poses are held fixed (default: image 0).
+    /// Images whose poses are held fixed (default `vec![0]`, image 0).
     pub fixed_images: Vec<usize>,
-    /// Solver options (default: [`SolverOptions::default`]).
+    /// Solver options (default [`SolverOptions::default`], Ceres's defaults).
     pub solver: SolverOptions,
+    /// Keeps the struct open to new fields: write it with `..Default::default()`.
+    #[doc(hidden)]
+    pub non_exhaustive: NonExhaustive,
 }
 
 impl Default for BundleAdjustmentOptions {
     fn default() -> Self {
         Self {
-            loss: Loss::Cauchy(1.0),
+            loss: RobustLoss::Cauchy { scale: 1.0 },
             optimize_intrinsics: false,
             fixed_images: vec![0],
             solver: SolverOptions::default(),
+            non_exhaustive: NonExhaustive(()),
         }
     }
 }
@@ -88,10 +112,15 @@ pub struct BundleAdjustmentResult {
     pub camera_from_world: Vec<Isometry3<f64>>,
     /// Refined points.
     pub points: Vec<Vector3<f64>>,
-    /// Root-mean-square reprojection error (pixels) at the start.
+    /// Root-mean-square reprojection error (pixels) at the start, over the observations used.
     pub initial_rms: f64,
-    /// Root-mean-square reprojection error (pixels) at the solution.
+    /// Root-mean-square reprojection error (pixels) at the solution, over the observations
+    /// used.
     pub final_rms: f64,
+    /// Indices (into [`BundleAdjustment::observations`], ascending) of the observations left
+    /// out because they cannot be evaluated at the initial estimate: behind the camera,
+    /// outside the camera model's domain, or not finite. Empty for a good start.
+    pub excluded_observations: Vec<usize>,
     /// The solver's summary.
     pub summary: Summary,
 }
@@ -183,38 +212,66 @@ impl CostFunction for BaReprojection {
 
 impl BundleAdjustment {
     fn validate(&self, options: &BundleAdjustmentOptions) -> Result<()> {
-        let invalid = |m: String| Err(BundleAdjustError::InvalidProblem(m));
-        if self.image_camera.len() != self.camera_from_world.len() {
-            return invalid(format!(
-                "{} images have poses but {} have cameras",
-                self.camera_from_world.len(),
-                self.image_camera.len()
-            ));
+        let images = self.camera_from_world.len();
+        if self.image_camera.len() != images {
+            return Err(BundleAdjustError::LengthMismatch {
+                what: "image_camera",
+                expected: images,
+                got: self.image_camera.len(),
+            });
         }
-        if let Some(&c) = self.image_camera.iter().find(|&&c| c >= self.cameras.len()) {
-            return invalid(format!(
-                "camera {c} does not exist ({} cameras)",
-                self.cameras.len()
-            ));
-        }
-        if let Some(&i) = options
-            .fixed_images
+        let cameras = self.cameras.len();
+        if let Some((image, &camera)) = self
+            .image_camera
             .iter()
-            .find(|&&i| i >= self.camera_from_world.len())
+            .enumerate()
+            .find(|&(_, &c)| c >= cameras)
         {
-            return invalid(format!("fixed image {i} does not exist"));
+            return Err(BundleAdjustError::IndexOutOfRange {
+                what: "image",
+                position: image,
+                target: "camera",
+                index: camera,
+                count: cameras,
+            });
         }
-        for (i, p) in self.camera_from_world.iter().enumerate() {
+        if let Some(&i) = options.fixed_images.iter().find(|&&i| i >= images) {
+            return Err(BundleAdjustError::InvalidOption {
+                name: "fixed_images",
+                reason: format!("image {i} does not exist ({images} images)"),
+            });
+        }
+        validate_loss(&options.loss)?;
+        for (index, p) in self.camera_from_world.iter().enumerate() {
             if !se3_to_params(p).iter().all(|v| v.is_finite()) {
-                return invalid(format!("camera_from_world[{i}] is not finite"));
+                return Err(BundleAdjustError::NonFiniteInput {
+                    what: "camera_from_world",
+                    index,
+                });
             }
         }
+        for (index, x) in self.points.iter().enumerate() {
+            if !x.iter().all(|v| v.is_finite()) {
+                return Err(BundleAdjustError::NonFiniteInput {
+                    what: "points",
+                    index,
+                });
+            }
+        }
+        let points = self.points.len();
         for (i, o) in self.observations.iter().enumerate() {
-            if o.image >= self.camera_from_world.len() || o.point >= self.points.len() {
-                return invalid(format!(
-                    "observation {i} refers to image {} or point {} that does not exist",
-                    o.image, o.point
-                ));
+            let out_of_range = |target, index, count| BundleAdjustError::IndexOutOfRange {
+                what: "observation",
+                position: i,
+                target,
+                index,
+                count,
+            };
+            if o.image >= images {
+                return Err(out_of_range("image", o.image, images));
+            }
+            if o.point >= points {
+                return Err(out_of_range("point", o.point, points));
             }
             if !o.pixel.iter().all(|v| v.is_finite()) {
                 return Err(BundleAdjustError::NonFiniteObservation { index: i });
@@ -232,9 +289,23 @@ impl BundleAdjustment {
         camera_from_world: &[Isometry3<f64>],
         points: &[Vector3<f64>],
     ) -> f64 {
+        self.rms_over(&[], cameras, camera_from_world, points)
+    }
+
+    /// [`BundleAdjustment::rms_error`] without the observations in `excluded` (ascending).
+    fn rms_over(
+        &self,
+        excluded: &[usize],
+        cameras: &[Camera],
+        camera_from_world: &[Isometry3<f64>],
+        points: &[Vector3<f64>],
+    ) -> f64 {
         let mut sum = 0.0;
         let mut n = 0usize;
-        for o in &self.observations {
+        for (i, o) in self.observations.iter().enumerate() {
+            if excluded.binary_search(&i).is_ok() {
+                continue;
+            }
             let (Some(pose), Some(x), Some(&c)) = (
                 camera_from_world.get(o.image),
                 points.get(o.point),
@@ -251,18 +322,88 @@ impl BundleAdjustment {
         if n == 0 { 0.0 } else { (sum / n as f64).sqrt() }
     }
 
-    /// Adjusts the scene.
+    /// Adjusts the scene, leaving out the observations that cannot be evaluated at the
+    /// initial estimate (see the module documentation).
     ///
     /// # Errors
-    /// [`BundleAdjustError::InvalidProblem`] for inconsistent indices or sizes,
-    /// [`BundleAdjustError::NonFiniteObservation`], and the errors of [`Problem::solve`].
+    /// [`BundleAdjustError::LengthMismatch`], [`BundleAdjustError::IndexOutOfRange`],
+    /// [`BundleAdjustError::NonFiniteInput`] or [`BundleAdjustError::NonFiniteObservation`]
+    /// for an inconsistent scene, [`BundleAdjustError::InvalidOption`] for a fixed image that
+    /// does not exist, [`BundleAdjustError::InvalidLossScale`],
+    /// [`BundleAdjustError::ImageWithoutObservations`],
+    /// [`BundleAdjustError::PointWithoutObservations`] or
+    /// [`BundleAdjustError::CameraWithoutObservations`] naming what is left without a usable
+    /// observation, [`BundleAdjustError::RefinedIntrinsicsRejected`], and the errors of
+    /// [`Problem::solve`].
     pub fn solve(&self, options: &BundleAdjustmentOptions) -> Result<BundleAdjustmentResult> {
         self.validate(options)?;
-        let mut problem = Problem::new();
-        let poses = self
-            .camera_from_world
+        let caches: Vec<Arc<CameraCache>> = self
+            .cameras
             .iter()
-            .map(|p| problem.add_manifold_block(&se3_to_params(p), Se3Manifold))
+            .map(|c| Arc::new(CameraCache(RwLock::new(c.clone()))))
+            .collect();
+        let pose_params: Vec<[f64; 7]> = self.camera_from_world.iter().map(se3_to_params).collect();
+        // Observations that cannot be evaluated at the start are left out.
+        let mut probe = EvaluationProbe::default();
+        let mut costs = Vec::with_capacity(self.observations.len());
+        let mut excluded_observations = Vec::new();
+        let mut used_by_image = vec![0usize; self.camera_from_world.len()];
+        let mut used_by_point = vec![0usize; self.points.len()];
+        let mut used_by_camera = vec![0usize; self.cameras.len()];
+        for (i, o) in self.observations.iter().enumerate() {
+            let c = self.image_camera[o.image];
+            let n = self.cameras[c].num_params();
+            let cost = BaReprojection {
+                camera: Arc::clone(&caches[c]),
+                sizes: [7, 3, n],
+                pixel: o.pixel,
+            };
+            let params: [&[f64]; 3] = [
+                &pose_params[o.image],
+                self.points[o.point].as_slice(),
+                self.cameras[c].params(),
+            ];
+            if probe.evaluates(&cost, &params, &[6, 3, n]) {
+                used_by_image[o.image] += 1;
+                used_by_point[o.point] += 1;
+                used_by_camera[c] += 1;
+                costs.push((o, c, cost));
+            } else {
+                excluded_observations.push(i);
+            }
+        }
+        let excluded = |pick: &dyn Fn(&BaObservation) -> bool| {
+            excluded_observations
+                .iter()
+                .filter(|&&i| pick(&self.observations[i]))
+                .count()
+        };
+        if let Some(image) = (0..used_by_image.len())
+            .find(|&i| used_by_image[i] == 0 && !options.fixed_images.contains(&i))
+        {
+            return Err(BundleAdjustError::ImageWithoutObservations {
+                image,
+                excluded: excluded(&|o| o.image == image),
+            });
+        }
+        if let Some(point) = used_by_point.iter().position(|&n| n == 0) {
+            return Err(BundleAdjustError::PointWithoutObservations {
+                point,
+                excluded: excluded(&|o| o.point == point),
+            });
+        }
+        if options.optimize_intrinsics
+            && let Some(camera) = used_by_camera.iter().position(|&n| n == 0)
+        {
+            return Err(BundleAdjustError::CameraWithoutObservations {
+                camera,
+                excluded: excluded(&|o| self.image_camera[o.image] == camera),
+            });
+        }
+        let mut problem = Problem::new();
+        let poses = pose_params
+            .iter()
+            .map(|p| problem.add_manifold_block(p, Se3Manifold))
             .collect::<Result<Vec<_>>>()?;
         let points = self
             .points
@@ -285,19 +426,9 @@ impl BundleAdjustment {
                 problem.set_constant(k, true)?;
             }
         }
-        let caches: Vec<Arc<CameraCache>> = self
-            .cameras
-            .iter()
-            .map(|c| Arc::new(CameraCache(RwLock::new(c.clone()))))
-            .collect();
-        for o in &self.observations {
-            let c = self.image_camera[o.image];
+        for (o, c, cost) in costs {
             problem.add_residual_block(
-                BaReprojection {
-                    camera: Arc::clone(&caches[c]),
-                    sizes: [7, 3, self.cameras[c].num_params()],
-                    pixel: o.pixel,
-                },
+                cost,
                 options.loss,
                 &[poses[o.image], points[o.point], intrinsics[c]],
             )?;
@@ -313,17 +444,28 @@ impl BundleAdjustment {
             .map(|&id| block(id).map(|v| Vector3::new(v[0], v[1], v[2])))
             .collect::<Result<Vec<_>>>()?;
         let mut cameras = self.cameras.clone();
-        for (camera, &id) in cameras.iter_mut().zip(&intrinsics) {
-            camera.set_params(block(id)?).map_err(|e| {
-                BundleAdjustError::InvalidProblem(format!("refined intrinsics rejected: {e}"))
+        for (camera, (model, &id)) in cameras.iter_mut().zip(&intrinsics).enumerate() {
+            model.set_params(block(id)?).map_err(|source| {
+                BundleAdjustError::RefinedIntrinsicsRejected { camera, source }
             })?;
         }
         Ok(BundleAdjustmentResult {
-            initial_rms: self.rms_error(&self.cameras, &self.camera_from_world, &self.points),
-            final_rms: self.rms_error(&cameras, &camera_from_world, &points),
+            initial_rms: self.rms_over(
+                &excluded_observations,
+                &self.cameras,
+                &self.camera_from_world,
+                &self.points,
+            ),
+            final_rms: self.rms_over(
+                &excluded_observations,
+                &cameras,
+                &camera_from_world,
+                &points,
+            ),
             cameras,
             camera_from_world,
             points,
+            excluded_observations,
             summary,
         })
     }

@@ -9,8 +9,14 @@
 //! - [`Se3Manifold`]: a rigid motion stored as `[qw, qx, qy, qz, tx, ty, tz]` (unit quaternion
 //!   first, `[w, x, y, z]` order), updated on the right, T ⊞ δ = T · Exp(δ) with
 //!   δ = `[ρ, φ]` (translation part first, Barfoot, "State Estimation for Robotics", 2017,
-//!   section 7.1.9).
-//! - [`UnitQuaternionManifold`]: a rotation `[w, x, y, z]`, q ⊞ φ = q ⊗ Exp(φ).
+//!   section 7.1.9). [`Se3Manifold::params`] and [`Se3Manifold::pose`] convert between a
+//!   pose and its block.
+//! - [`UnitQuaternionManifold`]: a rotation `[w, x, y, z]`, q ⊞ φ = q ⊗ Exp(φ);
+//!   [`UnitQuaternionManifold::params`] and [`UnitQuaternionManifold::rotation`] convert.
+//!
+//! The Lie-group maths behind them (Exp of so(3) and se(3), the left Jacobian of SO(3)) is
+//! internal; for the cross-product matrix `[v]×` of a Jacobian use nalgebra's
+//! `Vector3::cross_matrix`, and for Exp(φ) `UnitQuaternion::from_scaled_axis`.
 
 use nalgebra::{Isometry3, Matrix3, Quaternion, Translation3, UnitQuaternion, Vector3};
 
@@ -25,16 +31,74 @@ pub trait Manifold: Send + Sync + core::fmt::Debug {
 }
 
 /// SE(3) stored as `[qw, qx, qy, qz, tx, ty, tz]`, updated by right multiplication with the
-/// exponential of δ = `[ρ, φ]`.
+/// exponential of δ = `[ρ, φ]`: T ⊞ δ = T · Exp(δ), translation part ρ first.
 ///
 /// For the pose `a_from_b` and a point p_b, ∂(T ⊞ δ)(p_b)/∂δ at δ = 0 is
-/// `R · [I₃, −[p_b]×]`: the right-perturbation Jacobian cost functions supply.
+/// `R · [I₃, −[p_b]×]`: the right-perturbation Jacobian cost functions supply. A cost
+/// function reads its pose with [`Se3Manifold::pose`]; a block is made from a pose with
+/// [`Se3Manifold::params`].
+///
+/// ```
+/// use ibc_bundle_adjust::nalgebra::{Isometry3, Point3, Vector3};
+/// use ibc_bundle_adjust::{Problem, Se3Manifold};
+///
+/// let camera_from_world = Isometry3::new(Vector3::new(0.1, 0.2, 3.0), Vector3::y() * 0.3);
+/// let mut problem = Problem::new();
+/// let params = Se3Manifold::params(&camera_from_world);
+/// let block = problem.add_manifold_block(&params, Se3Manifold)?;
+/// // In a cost function: the pose, and d(T Exp(δ) p)/dδ = R [I, −[p]×] for δ = [ρ, φ].
+/// let Some(pose) = Se3Manifold::pose(problem.parameter_block(block)?) else { unreachable!() };
+/// let p = Point3::new(1.0, -1.0, 2.0);
+/// let r = pose.rotation.to_rotation_matrix().into_inner();
+/// let d_rotation = -r * p.coords.cross_matrix();
+/// assert!((pose * p - camera_from_world * p).norm() < 1e-15);
+/// assert_eq!(d_rotation, -r * Vector3::new(1.0, -1.0, 2.0).cross_matrix());
+/// # Ok::<(), ibc_bundle_adjust::BundleAdjustError>(())
+/// ```
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct Se3Manifold;
 
-/// A unit quaternion `[w, x, y, z]` updated as q ⊗ Exp(φ) with a 3-vector φ.
+impl Se3Manifold {
+    /// The seven stored values `[qw, qx, qy, qz, tx, ty, tz]` of a pose: the block of a pose
+    /// parameter.
+    #[inline]
+    #[must_use]
+    pub fn params(pose: &Isometry3<f64>) -> [f64; 7] {
+        se3_to_params(pose)
+    }
+
+    /// The pose stored in a block `[qw, qx, qy, qz, tx, ty, tz]` (the first seven values of
+    /// `params`), or `None` when `params` holds fewer than seven values. The quaternion is
+    /// normalized; a zero quaternion gives the identity rotation.
+    #[inline]
+    #[must_use]
+    pub fn pose(params: &[f64]) -> Option<Isometry3<f64>> {
+        (params.len() >= 7).then(|| se3_from_params(params))
+    }
+}
+
+/// A unit quaternion stored as `[w, x, y, z]`, updated on the right as q ⊞ φ = q ⊗ Exp(φ)
+/// with a 3-vector φ (the rotation vector of the step, in the rotated frame).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct UnitQuaternionManifold;
+
+impl UnitQuaternionManifold {
+    /// The four stored values `[w, x, y, z]` of a rotation.
+    #[inline]
+    #[must_use]
+    pub fn params(rotation: &UnitQuaternion<f64>) -> [f64; 4] {
+        [rotation.w, rotation.i, rotation.j, rotation.k]
+    }
+
+    /// The rotation stored in a block `[w, x, y, z]` (the first four values of `params`), or
+    /// `None` when `params` holds fewer than four values. The quaternion is normalized; a zero
+    /// quaternion gives the identity.
+    #[inline]
+    #[must_use]
+    pub fn rotation(params: &[f64]) -> Option<UnitQuaternion<f64>> {
+        (params.len() >= 4).then(|| quaternion_from_params(params))
+    }
+}
 
 impl Manifold for Se3Manifold {
     fn ambient_size(&self) -> usize {
@@ -74,8 +138,7 @@ impl Manifold for UnitQuaternionManifold {
 
 /// The seven stored values `[qw, qx, qy, qz, tx, ty, tz]` of a pose.
 #[inline]
-#[must_use]
-pub fn se3_to_params(pose: &Isometry3<f64>) -> [f64; 7] {
+pub(crate) fn se3_to_params(pose: &Isometry3<f64>) -> [f64; 7] {
     let q = pose.rotation;
     let t = pose.translation.vector;
     [q.w, q.i, q.j, q.k, t.x, t.y, t.z]
@@ -85,7 +148,7 @@ pub fn se3_to_params(pose: &Isometry3<f64>) -> [f64; 7] {
 /// quaternion gives the identity rotation). `params` must hold at least seven values.
 #[inline]
 #[must_use]
-pub fn se3_from_params(params: &[f64]) -> Isometry3<f64> {
+pub(crate) fn se3_from_params(params: &[f64]) -> Isometry3<f64> {
     Isometry3::from_parts(
         Translation3::new(params[4], params[5], params[6]),
         quaternion_from_params(params),
@@ -105,7 +168,7 @@ pub(crate) fn se3_from_unit_params(params: &[f64]) -> Isometry3<f64> {
 /// The unit quaternion stored as `[w, x, y, z]` (normalized; zero gives the identity).
 #[inline]
 #[must_use]
-pub fn quaternion_from_params(params: &[f64]) -> UnitQuaternion<f64> {
+pub(crate) fn quaternion_from_params(params: &[f64]) -> UnitQuaternion<f64> {
     let q = Quaternion::new(params[0], params[1], params[2], params[3]);
     UnitQuaternion::try_new(q, 0.0).unwrap_or_else(UnitQuaternion::identity)
 }
@@ -113,7 +176,7 @@ pub fn quaternion_from_params(params: &[f64]) -> UnitQuaternion<f64> {
 /// Exp of so(3): the rotation by angle |φ| about φ/|φ|.
 #[inline]
 #[must_use]
-pub fn so3_exp(phi: &Vector3<f64>) -> UnitQuaternion<f64> {
+pub(crate) fn so3_exp(phi: &Vector3<f64>) -> UnitQuaternion<f64> {
     let theta2 = phi.norm_squared();
     let theta = theta2.sqrt();
     // sin(θ/2)/θ, by its Taylor series below 1e-4 rad where the division loses digits.
@@ -130,7 +193,7 @@ pub fn so3_exp(phi: &Vector3<f64>) -> UnitQuaternion<f64> {
 /// `J_l(φ) = I + (1 − cos θ)/θ² [φ]× + (θ − sin θ)/θ³ [φ]×²`, θ = |φ|.
 #[inline]
 #[must_use]
-pub fn so3_left_jacobian(phi: &Vector3<f64>) -> Matrix3<f64> {
+pub(crate) fn so3_left_jacobian(phi: &Vector3<f64>) -> Matrix3<f64> {
     let theta2 = phi.norm_squared();
     let k = skew(phi);
     let (a, b) = if theta2 < 1e-8 {
@@ -146,7 +209,7 @@ pub fn so3_left_jacobian(phi: &Vector3<f64>) -> Matrix3<f64> {
 /// Exp of se(3) for δ = `[ρ, φ]`: rotation Exp(φ), translation J_l(φ) ρ.
 #[inline]
 #[must_use]
-pub fn se3_exp(rho: &Vector3<f64>, phi: &Vector3<f64>) -> Isometry3<f64> {
+pub(crate) fn se3_exp(rho: &Vector3<f64>, phi: &Vector3<f64>) -> Isometry3<f64> {
     let t = so3_left_jacobian(phi) * rho;
     Isometry3::from_parts(Translation3::from(t), so3_exp(phi))
 }
@@ -154,7 +217,7 @@ pub fn se3_exp(rho: &Vector3<f64>, phi: &Vector3<f64>) -> Isometry3<f64> {
 /// The cross-product matrix `[v]×`, with `[v]× w = v × w`.
 #[inline]
 #[must_use]
-pub fn skew(v: &Vector3<f64>) -> Matrix3<f64> {
+pub(crate) fn skew(v: &Vector3<f64>) -> Matrix3<f64> {
     Matrix3::new(0.0, -v.z, v.y, v.z, 0.0, -v.x, -v.y, v.x, 0.0)
 }
 

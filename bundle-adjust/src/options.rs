@@ -1,5 +1,6 @@
 //! Solver options, with Ceres Solver 2.1's defaults.
 
+use crate::NonExhaustive;
 use crate::error::{BundleAdjustError, Result};
 
 /// How the reduced (Schur-complement) system is solved.
@@ -54,53 +55,72 @@ impl LinearSolverType {
 /// Options of the Levenberg-Marquardt solver.
 ///
 /// `Default` gives Ceres Solver 2.1's defaults (`Solver::Options`), so iteration counts and
-/// costs can be compared with Ceres one for one.
+/// costs can be compared with Ceres one for one. Write the options as one expression:
+///
+/// ```
+/// use ibc_bundle_adjust::{LinearSolverType, SolverOptions};
+///
+/// let options = SolverOptions {
+///     max_iterations: 20,
+///     linear_solver: LinearSolverType::SparseSchur,
+///     ..Default::default()
+/// };
+/// assert_eq!(options.function_tolerance, 1e-6);
+/// ```
 #[derive(Debug, Clone, PartialEq)]
-#[non_exhaustive]
 pub struct SolverOptions {
-    /// Maximum number of iterations (Ceres: 50).
+    /// Maximum number of iterations (default 50, Ceres's).
     pub max_iterations: usize,
-    /// Stop when |Δcost| ≤ `function_tolerance` · cost (Ceres: 1e-6).
+    /// Stop when |Δcost| ≤ `function_tolerance` · cost (default 1e-6, Ceres's).
     pub function_tolerance: f64,
-    /// Stop when the max-norm of the gradient is ≤ this (Ceres: 1e-10).
+    /// Stop when the max-norm of the gradient is ≤ this (default 1e-10, Ceres's).
     pub gradient_tolerance: f64,
-    /// Stop when |Δx| ≤ `parameter_tolerance` · (|x| + `parameter_tolerance`) (Ceres: 1e-8).
+    /// Stop when |Δx| ≤ `parameter_tolerance` · (|x| + `parameter_tolerance`) (default 1e-8,
+    /// Ceres's).
     pub parameter_tolerance: f64,
-    /// Initial trust-region radius μ, the inverse of the initial damping (Ceres: 1e4).
+    /// Initial trust-region radius μ, the inverse of the initial damping (default 1e4,
+    /// Ceres's).
     pub initial_trust_region_radius: f64,
-    /// Largest trust-region radius (Ceres: 1e16).
+    /// Largest trust-region radius (default 1e16, Ceres's).
     pub max_trust_region_radius: f64,
-    /// Stop when the radius falls below this (Ceres: 1e-32).
+    /// Stop when the radius falls below this (default 1e-32, Ceres's).
     pub min_trust_region_radius: f64,
-    /// A step is accepted when its gain ratio exceeds this (Ceres: 1e-3).
+    /// A step is accepted when its gain ratio exceeds this (default 1e-3, Ceres's).
     pub min_relative_decrease: f64,
-    /// Lower clamp of the LM diagonal diag(JᵀJ) (Ceres: 1e-6).
+    /// Lower clamp of the LM diagonal diag(JᵀJ) (default 1e-6, Ceres's).
     pub min_lm_diagonal: f64,
-    /// Upper clamp of the LM diagonal (Ceres: 1e32).
+    /// Upper clamp of the LM diagonal (default 1e32, Ceres's).
     pub max_lm_diagonal: f64,
     /// Give up after this many consecutive steps the linear solver could not compute or that
-    /// do not decrease the model (Ceres: 5).
+    /// do not decrease the model (default 5, Ceres's).
     pub max_consecutive_invalid_steps: usize,
-    /// Scale the Jacobian's columns by 1/(1 + |column|) computed at the start (Ceres: true).
+    /// Scale the Jacobian's columns by 1/(1 + |column|) computed at the start (default true,
+    /// Ceres's).
     pub jacobi_scaling: bool,
-    /// Reduced-system solver.
+    /// Reduced-system solver (default [`LinearSolverType::Auto`]).
     pub linear_solver: LinearSolverType,
     /// Forcing parameter of the truncated-Newton (iterative) solver: conjugate gradients stop
     /// when the relative decrease of the quadratic model in an iteration, times the iteration
-    /// number, falls below it (Nash and Sofer's rule; Ceres `eta`: 0.1).
+    /// number, falls below it (Nash and Sofer's rule; default 0.1, Ceres's `eta`).
     pub eta: f64,
-    /// Maximum conjugate-gradient iterations per step (Ceres: 500).
+    /// Maximum conjugate-gradient iterations per step (default 500, Ceres's).
     pub max_linear_solver_iterations: usize,
-    /// Minimum conjugate-gradient iterations per step (Ceres: 0).
+    /// Minimum conjugate-gradient iterations per step (default 0, Ceres's).
     pub min_linear_solver_iterations: usize,
     /// Worker threads for Jacobian evaluation and Schur accumulation; 1 runs everything on the
-    /// calling thread (Ceres: 1). Results are deterministic for a fixed thread count.
+    /// calling thread (default 1, Ceres's). The work is split by this number, so results are
+    /// deterministic for a fixed value; without the crate's `rayon` feature the same split
+    /// runs on the calling thread, with the same results.
     pub num_threads: usize,
     /// When no block is marked for elimination, choose the eliminated group automatically
-    /// (a maximal independent set of the blocks, fewest residuals first, as Ceres does).
+    /// (a maximal independent set of the blocks, fewest residuals first, as Ceres does;
+    /// default true).
     pub automatic_elimination: bool,
-    /// Print a Ceres-style line per iteration to standard error.
+    /// Print a Ceres-style line per iteration to standard error (default false).
     pub log_to_stderr: bool,
+    /// Keeps the struct open to new fields: write it with `..Default::default()`.
+    #[doc(hidden)]
+    pub non_exhaustive: NonExhaustive,
 }
 
 impl Default for SolverOptions {
@@ -125,6 +145,7 @@ impl Default for SolverOptions {
             num_threads: 1,
             automatic_elimination: true,
             log_to_stderr: false,
+            non_exhaustive: NonExhaustive(()),
         }
     }
 }

@@ -1,20 +1,24 @@
 //! A local worker pool. With one thread everything runs on the calling thread and rayon's
 //! global pool is never touched; with more, work runs on a pool owned by the solve. Callers
-//! split work into a fixed list of tasks and combine the results in task order, so results
-//! are deterministic for a fixed thread count.
+//! split work into a fixed list of tasks (by the thread count) and combine the results in task
+//! order, so results are deterministic for a fixed thread count. Without the `rayon` feature
+//! the same tasks run one after the other on the calling thread: the results are the same.
 
+#[cfg(feature = "rayon")]
 use rayon::prelude::*;
 
-use crate::error::{BundleAdjustError, Result};
+use crate::error::Result;
 
 /// Runs lists of tasks on one or more threads.
 pub(crate) struct Executor {
+    #[cfg(feature = "rayon")]
     pool: Option<rayon::ThreadPool>,
     threads: usize,
 }
 
 impl Executor {
     /// An executor with `threads` workers (at least 1).
+    #[cfg(feature = "rayon")]
     pub(crate) fn new(threads: usize) -> Result<Self> {
         let threads = threads.max(1);
         let pool = if threads > 1 {
@@ -22,12 +26,25 @@ impl Executor {
                 rayon::ThreadPoolBuilder::new()
                     .num_threads(threads)
                     .build()
-                    .map_err(|e| BundleAdjustError::ThreadPool(e.to_string()))?,
+                    .map_err(|e| crate::BundleAdjustError::ThreadPool {
+                        threads,
+                        reason: e.to_string(),
+                    })?,
             )
         } else {
             None
         };
         Ok(Self { pool, threads })
+    }
+
+    /// An executor that splits work for `threads` workers (at least 1) and runs it on the
+    /// calling thread.
+    #[cfg(not(feature = "rayon"))]
+    #[allow(clippy::unnecessary_wraps)]
+    pub(crate) fn new(threads: usize) -> Result<Self> {
+        Ok(Self {
+            threads: threads.max(1),
+        })
     }
 
     /// Number of worker threads.
@@ -41,12 +58,15 @@ impl Executor {
         tasks: Vec<T>,
         f: impl Fn(T) -> R + Sync + Send,
     ) -> Vec<R> {
-        match &self.pool {
-            Some(pool) if tasks.len() > 1 => {
-                pool.install(|| tasks.into_par_iter().map(f).collect())
+        #[cfg(feature = "rayon")]
+        {
+            if let Some(pool) = &self.pool
+                && tasks.len() > 1
+            {
+                return pool.install(|| tasks.into_par_iter().map(f).collect());
             }
-            _ => tasks.into_iter().map(f).collect(),
         }
+        tasks.into_iter().map(f).collect()
     }
 }
 

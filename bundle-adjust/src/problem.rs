@@ -5,9 +5,10 @@
 
 use std::sync::Arc;
 
+use crate::RobustLoss;
+use crate::corrector::validate_loss;
 use crate::cost::CostFunction;
 use crate::error::{BundleAdjustError, Result};
-use crate::loss::Loss;
 use crate::manifold::Manifold;
 use crate::options::SolverOptions;
 use crate::summary::Summary;
@@ -48,7 +49,7 @@ pub(crate) struct ParameterBlock {
 
 pub(crate) struct ResidualBlock {
     pub cost: Box<dyn CostFunction>,
-    pub loss: Loss,
+    pub loss: RobustLoss,
     pub blocks: Vec<usize>,
     pub rows: usize,
 }
@@ -161,7 +162,8 @@ impl Problem {
         Ok(self.block(block)?.constant)
     }
 
-    /// Adds a residual block r = `cost`(blocks...) with robust loss `loss`.
+    /// Adds a residual block r = `cost`(blocks...) with robust loss `loss` (its cost is
+    /// ½ ρ(|r|²); [`RobustLoss::Trivial`] for plain least squares).
     ///
     /// # Errors
     /// [`BundleAdjustError::UnknownParameterBlock`],
@@ -173,7 +175,7 @@ impl Problem {
     pub fn add_residual_block(
         &mut self,
         cost: impl CostFunction + 'static,
-        loss: Loss,
+        loss: RobustLoss,
         blocks: &[ParameterBlockId],
     ) -> Result<ResidualBlockId> {
         self.add_boxed_residual_block(Box::new(cost), loss, blocks)
@@ -186,10 +188,10 @@ impl Problem {
     pub fn add_boxed_residual_block(
         &mut self,
         cost: Box<dyn CostFunction>,
-        loss: Loss,
+        loss: RobustLoss,
         blocks: &[ParameterBlockId],
     ) -> Result<ResidualBlockId> {
-        loss.validate()?;
+        validate_loss(&loss)?;
         let sizes = cost.parameter_block_sizes();
         let rows = cost.num_residuals();
         if rows == 0 || sizes.is_empty() {

@@ -359,9 +359,7 @@ impl Program {
 }
 
 fn to_u32(v: usize) -> Result<u32> {
-    u32::try_from(v).map_err(|_| {
-        BundleAdjustError::InvalidProblem(format!("index {v} exceeds the supported size (2^32)"))
-    })
+    u32::try_from(v).map_err(|_| BundleAdjustError::TooLarge { index: v })
 }
 
 /// The blocks to eliminate: the marked ones (checked to be independent), or a greedy maximal

@@ -12,19 +12,28 @@
 //! T⁻¹ · rig_from_camera) leaves every prediction unchanged. The gauge is fixed by holding the
 //! extrinsic of [`RigRefinementOptions::reference_camera`] at its initial value: the rig frame
 //! is defined by that camera (identity if the rig frame is that camera's frame).
+//!
+//! **Bad starts.** An observation that cannot be evaluated at the initial estimate (its point
+//! behind the camera, outside the camera model's domain, or a non-finite residual or
+//! Jacobian) is left out of the refinement and reported in
+//! [`RigRefinementResult::excluded_observations`]; its camera and rig pose stay in as long as
+//! other observations determine them. A camera or frame set left without observations is a
+//! [`BundleAdjustError::CameraWithoutObservations`] or
+//! [`BundleAdjustError::FrameWithoutObservations`].
 
 use std::sync::Arc;
 
-use ibc_camera_models::{Camera, CameraModel};
+use ibc_camera_models::{Camera, CameraModel, Rig};
 use nalgebra::{Isometry3, Matrix3, Matrix6, SMatrix, Vector2, Vector3};
 
-use crate::cost::{CostFunction, Jacobians};
+use crate::corrector::validate_loss;
+use crate::cost::{CostFunction, EvaluationProbe, Jacobians};
 use crate::error::{BundleAdjustError, Result};
-use crate::loss::Loss;
 use crate::manifold::{Se3Manifold, se3_from_params, se3_from_unit_params, se3_to_params, skew};
 use crate::options::SolverOptions;
 use crate::problem::{ParameterBlockId, Problem};
 use crate::summary::Summary;
+use crate::{NonExhaustive, RobustLoss};
 
 /// One observation of a fixed map point by one camera in one frame set.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -40,6 +49,9 @@ pub struct RigObservation {
 }
 
 /// A rig-refinement problem: initial extrinsics and rig poses, cameras and observations.
+///
+/// Build it from an [`ibc_camera_models::Rig`] with [`RigRefinement::from_rig`], or fill the
+/// fields.
 #[derive(Debug, Clone)]
 pub struct RigRefinement {
     /// Intrinsics of each camera (held fixed).
@@ -53,27 +65,41 @@ pub struct RigRefinement {
 }
 
 /// Options of [`RigRefinement::refine`].
+///
+/// ```
+/// use ibc_bundle_adjust::{RigRefinementOptions, RobustLoss, SolverOptions};
+///
+/// let options = RigRefinementOptions {
+///     loss: RobustLoss::Huber { scale: 2.0 },
+///     solver: SolverOptions { num_threads: 2, ..Default::default() },
+///     ..Default::default()
+/// };
+/// assert!(options.covariance);
+/// ```
 #[derive(Debug, Clone, PartialEq)]
-#[non_exhaustive]
 pub struct RigRefinementOptions {
-    /// Robust loss on the squared pixel error (default: Cauchy with a = 1 pixel, the paper's
-    /// Cauchy-robust reprojection error).
-    pub loss: Loss,
+    /// Robust loss on the squared pixel error (default `RobustLoss::Cauchy { scale: 1.0 }`,
+    /// a = 1 pixel: the paper's Cauchy-robust reprojection error).
+    pub loss: RobustLoss,
     /// The camera whose extrinsic is held at its initial value to fix the gauge (default 0).
     pub reference_camera: usize,
     /// Compute the covariance of the extrinsics at the solution (default true).
     pub covariance: bool,
-    /// Solver options (default: [`SolverOptions::default`]).
+    /// Solver options (default [`SolverOptions::default`], Ceres's defaults).
     pub solver: SolverOptions,
+    /// Keeps the struct open to new fields: write it with `..Default::default()`.
+    #[doc(hidden)]
+    pub non_exhaustive: NonExhaustive,
 }
 
 impl Default for RigRefinementOptions {
     fn default() -> Self {
         Self {
-            loss: Loss::Cauchy(1.0),
+            loss: RobustLoss::Cauchy { scale: 1.0 },
             reference_camera: 0,
             covariance: true,
             solver: SolverOptions::default(),
+            non_exhaustive: NonExhaustive(()),
         }
     }
 }
@@ -90,12 +116,55 @@ pub struct RigRefinementResult {
     /// pixel noise, `None` for the reference camera or when not requested or undefined.
     /// Multiply by σ² for a pixel noise σ.
     pub extrinsic_covariance: Vec<Option<Matrix6<f64>>>,
-    /// Root-mean-square reprojection error (pixels) at the start, over all observations.
+    /// Root-mean-square reprojection error (pixels) at the start, over the observations used.
     pub initial_rms: f64,
-    /// Root-mean-square reprojection error (pixels) at the solution.
+    /// Root-mean-square reprojection error (pixels) at the solution, over the observations
+    /// used.
     pub final_rms: f64,
+    /// Indices (into [`RigRefinement::observations`], ascending) of the observations left out
+    /// because they cannot be evaluated at the initial estimate: behind the camera, outside
+    /// the camera model's domain, or not finite. Empty for a good start.
+    pub excluded_observations: Vec<usize>,
     /// The solver's summary.
     pub summary: Summary,
+}
+
+impl RigRefinementResult {
+    /// `rig` with its cameras' extrinsics replaced by the refined ones (intrinsics, names and
+    /// the rest unchanged).
+    ///
+    /// # Errors
+    /// [`BundleAdjustError::LengthMismatch`] when `rig` does not have one camera per refined
+    /// extrinsic.
+    pub fn to_rig(&self, rig: &Rig) -> Result<Rig> {
+        if rig.cameras.len() != self.rig_from_camera.len() {
+            return Err(BundleAdjustError::LengthMismatch {
+                what: "rig.cameras",
+                expected: self.rig_from_camera.len(),
+                got: rig.cameras.len(),
+            });
+        }
+        let mut refined = rig.clone();
+        for (camera, pose) in refined.cameras.iter_mut().zip(&self.rig_from_camera) {
+            camera.rig_from_camera = *pose;
+        }
+        Ok(refined)
+    }
+}
+
+/// A rig refinement compiled into a [`Problem`] by [`RigRefinement::to_problem`].
+#[derive(Debug)]
+#[non_exhaustive]
+pub struct RigProblem {
+    /// The problem: one residual block per observation used, in observation order.
+    pub problem: Problem,
+    /// The SE(3) block ([`Se3Manifold`]) of each frame set's `world_from_rig` (eliminated).
+    pub world_from_rig: Vec<ParameterBlockId>,
+    /// The SE(3) block of each camera's `rig_from_camera` (the reference camera's constant).
+    pub rig_from_camera: Vec<ParameterBlockId>,
+    /// Indices of the observations left out (see
+    /// [`RigRefinementResult::excluded_observations`]).
+    pub excluded_observations: Vec<usize>,
 }
 
 /// The reprojection residual of one rig observation; arguments
@@ -169,44 +238,72 @@ impl CostFunction for RigReprojection {
     }
 }
 
-fn check_pose(pose: &Isometry3<f64>, what: &str) -> Result<()> {
+fn check_pose(index: usize, pose: &Isometry3<f64>, what: &'static str) -> Result<()> {
     if se3_to_params(pose).iter().all(|v| v.is_finite()) {
         Ok(())
     } else {
-        Err(BundleAdjustError::InvalidProblem(format!(
-            "{what} is not finite"
-        )))
+        Err(BundleAdjustError::NonFiniteInput { what, index })
     }
 }
 
 impl RigRefinement {
+    /// The refinement of `rig`'s extrinsics: its cameras (intrinsics held fixed) and their
+    /// `rig_from_camera` as the start, the start `world_from_rig` of each frame set, and the
+    /// observations (their `camera` is a position in `rig.cameras`, their `frame` one in
+    /// `world_from_rig`).
+    #[must_use]
+    pub fn from_rig(
+        rig: &Rig,
+        world_from_rig: Vec<Isometry3<f64>>,
+        observations: Vec<RigObservation>,
+    ) -> Self {
+        Self {
+            cameras: rig.cameras.iter().map(|c| c.camera.clone()).collect(),
+            rig_from_camera: rig.cameras.iter().map(|c| c.rig_from_camera).collect(),
+            world_from_rig,
+            observations,
+        }
+    }
+
     fn validate(&self, options: &RigRefinementOptions) -> Result<()> {
         let nc = self.cameras.len();
         if self.rig_from_camera.len() != nc {
-            return Err(BundleAdjustError::InvalidProblem(format!(
-                "{} cameras but {} extrinsics",
-                nc,
-                self.rig_from_camera.len()
-            )));
+            return Err(BundleAdjustError::LengthMismatch {
+                what: "rig_from_camera",
+                expected: nc,
+                got: self.rig_from_camera.len(),
+            });
         }
         if options.reference_camera >= nc {
-            return Err(BundleAdjustError::InvalidProblem(format!(
-                "reference camera {} does not exist ({nc} cameras)",
-                options.reference_camera
-            )));
+            return Err(BundleAdjustError::InvalidOption {
+                name: "reference_camera",
+                reason: format!(
+                    "camera {} does not exist ({nc} cameras)",
+                    options.reference_camera
+                ),
+            });
         }
+        validate_loss(&options.loss)?;
         for (i, p) in self.rig_from_camera.iter().enumerate() {
-            check_pose(p, &format!("rig_from_camera[{i}]"))?;
+            check_pose(i, p, "rig_from_camera")?;
         }
         for (i, p) in self.world_from_rig.iter().enumerate() {
-            check_pose(p, &format!("world_from_rig[{i}]"))?;
+            check_pose(i, p, "world_from_rig")?;
         }
+        let nf = self.world_from_rig.len();
         for (i, o) in self.observations.iter().enumerate() {
-            if o.camera >= nc || o.frame >= self.world_from_rig.len() {
-                return Err(BundleAdjustError::InvalidProblem(format!(
-                    "observation {i} refers to camera {} or frame set {} that does not exist",
-                    o.camera, o.frame
-                )));
+            let out_of_range = |target, index, count| BundleAdjustError::IndexOutOfRange {
+                what: "observation",
+                position: i,
+                target,
+                index,
+                count,
+            };
+            if o.camera >= nc {
+                return Err(out_of_range("camera", o.camera, nc));
+            }
+            if o.frame >= nf {
+                return Err(out_of_range("frame set", o.frame, nf));
             }
             if !(o.world_point.iter().all(|v| v.is_finite())
                 && o.pixel.iter().all(|v| v.is_finite()))
@@ -218,45 +315,89 @@ impl RigRefinement {
     }
 
     /// Builds the [`Problem`]: one SE(3) block per frame set (eliminated) and per camera (the
-    /// reference camera's held constant), one residual per observation.
+    /// reference camera's held constant), one residual per observation that can be evaluated
+    /// at the initial estimate (the others are listed in
+    /// [`RigProblem::excluded_observations`]).
     ///
     /// # Errors
-    /// [`BundleAdjustError::InvalidProblem`] for inconsistent sizes, indices or non-finite
-    /// poses, [`BundleAdjustError::NonFiniteObservation`], or an invalid loss.
-    pub fn to_problem(
-        &self,
-        options: &RigRefinementOptions,
-    ) -> Result<(Problem, Vec<ParameterBlockId>, Vec<ParameterBlockId>)> {
+    /// [`BundleAdjustError::LengthMismatch`], [`BundleAdjustError::IndexOutOfRange`],
+    /// [`BundleAdjustError::NonFiniteInput`] or [`BundleAdjustError::NonFiniteObservation`]
+    /// for an inconsistent description, [`BundleAdjustError::InvalidOption`] for a reference
+    /// camera that does not exist, [`BundleAdjustError::InvalidLossScale`], and
+    /// [`BundleAdjustError::CameraWithoutObservations`] or
+    /// [`BundleAdjustError::FrameWithoutObservations`] naming a camera or frame set without a
+    /// usable observation.
+    pub fn to_problem(&self, options: &RigRefinementOptions) -> Result<RigProblem> {
         self.validate(options)?;
+        let cameras: Arc<[Camera]> = self.cameras.clone().into();
+        let frame_params: Vec<[f64; 7]> = self.world_from_rig.iter().map(se3_to_params).collect();
+        let camera_params: Vec<[f64; 7]> = self.rig_from_camera.iter().map(se3_to_params).collect();
+        // Observations that cannot be evaluated at the start are left out.
+        let mut probe = EvaluationProbe::default();
+        let mut costs = Vec::with_capacity(self.observations.len());
+        let mut excluded_observations = Vec::new();
+        let mut used_by_camera = vec![0usize; self.cameras.len()];
+        let mut used_by_frame = vec![0usize; self.world_from_rig.len()];
+        for (i, o) in self.observations.iter().enumerate() {
+            let cost = RigReprojection {
+                cameras: Arc::clone(&cameras),
+                camera: o.camera,
+                world_point: o.world_point,
+                pixel: o.pixel,
+            };
+            let params: [&[f64]; 2] = [&frame_params[o.frame], &camera_params[o.camera]];
+            if probe.evaluates(&cost, &params, &[6, 6]) {
+                used_by_camera[o.camera] += 1;
+                used_by_frame[o.frame] += 1;
+                costs.push((o, cost));
+            } else {
+                excluded_observations.push(i);
+            }
+        }
+        let excluded = |pick: &dyn Fn(&RigObservation) -> bool| {
+            excluded_observations
+                .iter()
+                .filter(|&&i| pick(&self.observations[i]))
+                .count()
+        };
+        if let Some(camera) = used_by_camera.iter().position(|&n| n == 0) {
+            return Err(BundleAdjustError::CameraWithoutObservations {
+                camera,
+                excluded: excluded(&|o| o.camera == camera),
+            });
+        }
+        if let Some(frame) = used_by_frame.iter().position(|&n| n == 0) {
+            return Err(BundleAdjustError::FrameWithoutObservations {
+                frame,
+                excluded: excluded(&|o| o.frame == frame),
+            });
+        }
         let mut problem = Problem::new();
-        let frames = self
-            .world_from_rig
+        let world_from_rig = frame_params
             .iter()
-            .map(|p| problem.add_manifold_block(&se3_to_params(p), Se3Manifold))
+            .map(|p| problem.add_manifold_block(p, Se3Manifold))
             .collect::<Result<Vec<_>>>()?;
-        let extrinsics = self
-            .rig_from_camera
+        let rig_from_camera = camera_params
             .iter()
-            .map(|p| problem.add_manifold_block(&se3_to_params(p), Se3Manifold))
+            .map(|p| problem.add_manifold_block(p, Se3Manifold))
             .collect::<Result<Vec<_>>>()?;
-        for &f in &frames {
+        for &f in &world_from_rig {
             problem.set_eliminated(f, true)?;
         }
-        problem.set_constant(extrinsics[options.reference_camera], true)?;
-        let cameras: Arc<[Camera]> = self.cameras.clone().into();
-        for o in &self.observations {
+        problem.set_constant(rig_from_camera[options.reference_camera], true)?;
+        for (o, cost) in costs {
             problem.add_residual_block(
-                RigReprojection {
-                    cameras: Arc::clone(&cameras),
-                    camera: o.camera,
-                    world_point: o.world_point,
-                    pixel: o.pixel,
-                },
+                cost,
                 options.loss,
-                &[frames[o.frame], extrinsics[o.camera]],
+                &[world_from_rig[o.frame], rig_from_camera[o.camera]],
             )?;
         }
-        Ok((problem, frames, extrinsics))
+        Ok(RigProblem {
+            problem,
+            world_from_rig,
+            rig_from_camera,
+            excluded_observations,
+        })
     }
 
     /// Root-mean-square reprojection error (pixels) of the given poses over all observations
@@ -267,9 +408,22 @@ impl RigRefinement {
         rig_from_camera: &[Isometry3<f64>],
         world_from_rig: &[Isometry3<f64>],
     ) -> f64 {
+        self.rms_over(&[], rig_from_camera, world_from_rig)
+    }
+
+    /// [`RigRefinement::rms_error`] without the observations in `excluded` (ascending).
+    fn rms_over(
+        &self,
+        excluded: &[usize],
+        rig_from_camera: &[Isometry3<f64>],
+        world_from_rig: &[Isometry3<f64>],
+    ) -> f64 {
         let mut sum = 0.0;
         let mut n = 0usize;
-        for o in &self.observations {
+        for (i, o) in self.observations.iter().enumerate() {
+            if excluded.binary_search(&i).is_ok() {
+                continue;
+            }
             let (Some(c), Some(w), Some(cam)) = (
                 rig_from_camera.get(o.camera),
                 world_from_rig.get(o.frame),
@@ -288,14 +442,18 @@ impl RigRefinement {
         if n == 0 { 0.0 } else { (sum / n as f64).sqrt() }
     }
 
-    /// Refines the extrinsics and rig poses.
+    /// Refines the extrinsics and rig poses, leaving out the observations that cannot be
+    /// evaluated at the initial estimate (see the module documentation).
     ///
     /// # Errors
-    /// As [`RigRefinement::to_problem`] and [`Problem::solve`] (for instance
-    /// [`BundleAdjustError::InitialEvaluationFailed`] when a point is behind its camera at the
-    /// start).
+    /// As [`RigRefinement::to_problem`] and [`Problem::solve`].
     pub fn refine(&self, options: &RigRefinementOptions) -> Result<RigRefinementResult> {
-        let (mut problem, frames, extrinsics) = self.to_problem(options)?;
+        let RigProblem {
+            mut problem,
+            world_from_rig: frames,
+            rig_from_camera: extrinsics,
+            excluded_observations,
+        } = self.to_problem(options)?;
         let summary = problem.solve(&options.solver)?;
         let read = |ids: &[ParameterBlockId]| -> Result<Vec<Isometry3<f64>>> {
             ids.iter()
@@ -323,11 +481,16 @@ impl RigRefinement {
             }
         }
         Ok(RigRefinementResult {
-            initial_rms: self.rms_error(&self.rig_from_camera, &self.world_from_rig),
-            final_rms: self.rms_error(&rig_from_camera, &world_from_rig),
+            initial_rms: self.rms_over(
+                &excluded_observations,
+                &self.rig_from_camera,
+                &self.world_from_rig,
+            ),
+            final_rms: self.rms_over(&excluded_observations, &rig_from_camera, &world_from_rig),
             rig_from_camera,
             world_from_rig,
             extrinsic_covariance,
+            excluded_observations,
             summary,
         })
     }

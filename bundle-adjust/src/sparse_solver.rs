@@ -61,9 +61,9 @@ impl SparseSolver {
             start = end;
         }
         if col_ptr.len() != n + 1 {
-            return Err(BundleAdjustError::InvalidProblem(
-                "internal: the reduced system's block structure is incomplete".into(),
-            ));
+            return Err(BundleAdjustError::Internal {
+                reason: "the reduced system's block structure is incomplete",
+            });
         }
         let structure = SymbolicSparseColMatRef::new_checked(n, n, &col_ptr, None, &row_idx);
         let symbolic = factorize_symbolic_cholesky(
@@ -72,8 +72,9 @@ impl SparseSolver {
             SymmetricOrdering::Amd,
             CholeskySymbolicParams::default(),
         )
-        .map_err(|e| {
-            BundleAdjustError::InvalidProblem(format!("sparse symbolic factorization: {e:?}"))
+        .map_err(|source| BundleAdjustError::SparseFactorization {
+            unknowns: n,
+            source,
         })?;
         let req = symbolic
             .factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default())

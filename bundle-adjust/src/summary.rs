@@ -159,7 +159,8 @@ pub struct Summary {
     pub termination: Termination,
     /// The reduced-system solver used.
     pub linear_solver: LinearSolverType,
-    /// Worker threads used.
+    /// The thread count the work was split for ([`crate::SolverOptions::num_threads`]);
+    /// without the crate's `rayon` feature all of it ran on the calling thread.
     pub num_threads: usize,
     /// Number of unknowns eliminated by the Schur complement.
     pub num_eliminated: usize,

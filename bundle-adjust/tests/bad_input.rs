@@ -2,7 +2,7 @@
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
 use ibc_bundle_adjust::{
-    BalProblem, BundleAdjustError as E, CostFunction, Jacobians, Loss, Problem, Se3Manifold,
+    BalProblem, BundleAdjustError as E, CostFunction, Jacobians, Problem, RobustLoss, Se3Manifold,
     SolverOptions,
 };
 use nalgebra::{SMatrix, Vector2};
@@ -80,7 +80,7 @@ fn non_finite_observations_are_rejected() {
     let mut bal = BalProblem::parse("1 1 1\n0 0 1.0 2.0\n0 0 0 0 0 -5 100 0 0\n0 0 -1\n").unwrap();
     bal.observations[0].pixel[1] = f64::NAN;
     assert!(matches!(
-        bal.to_problem(Loss::Trivial),
+        bal.to_problem(RobustLoss::Trivial),
         Err(E::NonFiniteObservation { index: 0 })
     ));
     assert!(matches!(
@@ -95,7 +95,7 @@ fn non_finite_observations_are_rejected() {
             r[0] = f64::NAN;
             true
         }),
-        Loss::Trivial,
+        RobustLoss::Trivial,
         &[x],
     )
     .unwrap();
@@ -125,7 +125,7 @@ fn empty_problems_are_rejected() {
     assert!(
         empty
             .clone()
-            .solve(Loss::Trivial, &SolverOptions::default())
+            .solve(RobustLoss::Trivial, &SolverOptions::default())
             .is_err()
     );
 }
@@ -137,7 +137,11 @@ fn missing_blocks_are_rejected() {
     let foreign = other.add_parameter_block(&[0.0, 0.0]).unwrap();
     let mut p = Problem::new();
     p.add_parameter_block(&[0.0, 0.0]).unwrap();
-    let err = p.add_residual_block(Prior::<2> { target: [1.0, 1.0] }, Loss::Trivial, &[foreign]);
+    let err = p.add_residual_block(
+        Prior::<2> { target: [1.0, 1.0] },
+        RobustLoss::Trivial,
+        &[foreign],
+    );
     assert!(matches!(
         err,
         Err(E::UnknownParameterBlock { block: 1, count: 1 })
@@ -164,7 +168,7 @@ fn mismatched_sizes_are_rejected() {
     let pair = p.add_parameter_block(&[0.0, 0.0]).unwrap();
     let target = [1.0, 1.0];
     assert!(matches!(
-        p.add_residual_block(Prior::<2> { target }, Loss::Trivial, &[small]),
+        p.add_residual_block(Prior::<2> { target }, RobustLoss::Trivial, &[small]),
         Err(E::ParameterSizeMismatch {
             position: 0,
             expected: 2,
@@ -173,7 +177,7 @@ fn mismatched_sizes_are_rejected() {
         })
     ));
     assert!(matches!(
-        p.add_residual_block(Prior::<2> { target }, Loss::Trivial, &[pair, small]),
+        p.add_residual_block(Prior::<2> { target }, RobustLoss::Trivial, &[pair, small]),
         Err(E::ParameterCountMismatch {
             expected: 1,
             got: 2
@@ -187,11 +191,15 @@ fn mismatched_sizes_are_rejected() {
         })
     ));
     assert!(matches!(
-        p.add_residual_block(Prior::<2> { target }, Loss::Cauchy(-1.0), &[pair]),
-        Err(E::InvalidLossScale(_))
+        p.add_residual_block(
+            Prior::<2> { target },
+            RobustLoss::Cauchy { scale: -1.0 },
+            &[pair]
+        ),
+        Err(E::InvalidLossScale { scale: -1.0 })
     ));
     // A Jacobian written with the wrong number of columns.
-    p.add_residual_block(Prior::<3> { target }, Loss::Trivial, &[pair])
+    p.add_residual_block(Prior::<3> { target }, RobustLoss::Trivial, &[pair])
         .unwrap();
     assert!(matches!(
         p.solve(&SolverOptions::default()),
@@ -219,10 +227,11 @@ fn structural_mistakes_are_rejected() {
         }
     }
     assert!(matches!(
-        p.add_residual_block(Pair, Loss::Trivial, &[a, a]),
+        p.add_residual_block(Pair, RobustLoss::Trivial, &[a, a]),
         Err(E::DuplicateParameterBlock { .. })
     ));
-    p.add_residual_block(Pair, Loss::Trivial, &[a, b]).unwrap();
+    p.add_residual_block(Pair, RobustLoss::Trivial, &[a, b])
+        .unwrap();
     p.set_eliminated(a, true).unwrap();
     p.set_eliminated(b, true).unwrap();
     assert!(matches!(
@@ -238,10 +247,12 @@ fn structural_mistakes_are_rejected() {
 fn invalid_options_are_rejected() {
     let mut p = Problem::new();
     let x = p.add_parameter_block(&[0.0, 0.0]).unwrap();
-    p.add_residual_block(Prior::<2> { target: [1.0, 2.0] }, Loss::Trivial, &[x])
+    p.add_residual_block(Prior::<2> { target: [1.0, 2.0] }, RobustLoss::Trivial, &[x])
         .unwrap();
-    let mut o = SolverOptions::default();
-    o.num_threads = 0;
+    let o = SolverOptions {
+        num_threads: 0,
+        ..Default::default()
+    };
     assert!(matches!(
         p.solve(&o),
         Err(E::InvalidOption {
@@ -249,8 +260,10 @@ fn invalid_options_are_rejected() {
             ..
         })
     ));
-    let mut o = SolverOptions::default();
-    o.function_tolerance = f64::NAN;
+    let o = SolverOptions {
+        function_tolerance: f64::NAN,
+        ..Default::default()
+    };
     assert!(matches!(
         p.solve(&o),
         Err(E::InvalidOption {
@@ -258,8 +271,10 @@ fn invalid_options_are_rejected() {
             ..
         })
     ));
-    let mut o = SolverOptions::default();
-    o.initial_trust_region_radius = -1.0;
+    let o = SolverOptions {
+        initial_trust_region_radius: -1.0,
+        ..Default::default()
+    };
     assert!(p.solve(&o).is_err());
     let s = p.solve(&SolverOptions::default()).unwrap();
     assert!(s.termination.is_converged());
@@ -276,7 +291,7 @@ fn evaluation_failures_during_the_solve_reject_steps() {
             r[0] = x[0] - 3.0;
             x[0] <= 2.5
         }),
-        Loss::Trivial,
+        RobustLoss::Trivial,
         &[x],
     )
     .unwrap();
@@ -293,7 +308,7 @@ fn evaluation_failures_during_the_solve_reject_steps() {
             r[0] = x[0];
             x[0] < 1.0
         }),
-        Loss::Trivial,
+        RobustLoss::Trivial,
         &[y],
     )
     .unwrap();
@@ -316,7 +331,7 @@ proptest! {
                            t in prop::array::uniform2(-1e3..1e3f64)) {
         let mut p = Problem::new();
         if let Ok(b) = p.add_parameter_block(&x) {
-            p.add_residual_block(Prior::<2> { target: t }, Loss::Cauchy(1.0), &[b]).unwrap();
+            p.add_residual_block(Prior::<2> { target: t }, RobustLoss::Cauchy { scale: 1.0 }, &[b]).unwrap();
             let _ = p.solve(&SolverOptions::default());
             let _ = Vector2::new(0.0, 0.0);
         }

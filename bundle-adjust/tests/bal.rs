@@ -16,7 +16,7 @@ mod common;
 
 use approx::assert_relative_eq;
 use common::bal_path;
-use ibc_bundle_adjust::{BalProblem, LinearSolverType, Loss, SolverOptions, Summary};
+use ibc_bundle_adjust::{BalProblem, LinearSolverType, RobustLoss, SolverOptions, Summary};
 use nalgebra::{Rotation3, Vector3};
 
 fn problem49() -> BalProblem {
@@ -32,17 +32,23 @@ fn problem49() -> BalProblem {
 
 /// Ceres's `Solver::Options` defaults, optionally without the convergence tests.
 fn options(solver: LinearSolverType, full_budget: bool) -> SolverOptions {
-    let mut o = SolverOptions::default();
-    o.linear_solver = solver;
+    let o = SolverOptions {
+        linear_solver: solver,
+        ..Default::default()
+    };
     if full_budget {
-        o.function_tolerance = 0.0;
-        o.gradient_tolerance = 0.0;
-        o.parameter_tolerance = 0.0;
+        SolverOptions {
+            function_tolerance: 0.0,
+            gradient_tolerance: 0.0,
+            parameter_tolerance: 0.0,
+            ..o
+        }
+    } else {
+        o
     }
-    o
 }
 
-fn solve(loss: Loss, solver: LinearSolverType) -> Summary {
+fn solve(loss: RobustLoss, solver: LinearSolverType) -> Summary {
     let mut bal = problem49();
     let s = bal.solve(loss, &options(solver, true)).unwrap();
     assert_eq!(s.iterations, 50);
@@ -53,9 +59,9 @@ fn solve(loss: Loss, solver: LinearSolverType) -> Summary {
 fn initial_costs_match_ceres_to_seven_digits() {
     let bal = problem49();
     for (loss, ceres) in [
-        (Loss::Trivial, 8.509125e5),
-        (Loss::Cauchy(1.0), 3.102958e4),
-        (Loss::Huber(1.0), 1.206505e5),
+        (RobustLoss::Trivial, 8.509125e5),
+        (RobustLoss::Cauchy { scale: 1.0 }, 3.102958e4),
+        (RobustLoss::Huber { scale: 1.0 }, 1.206505e5),
     ] {
         let cost = bal.cost(loss).unwrap();
         // Seven significant digits: Ceres prints %e with 6 decimals.
@@ -67,7 +73,10 @@ fn initial_costs_match_ceres_to_seven_digits() {
 fn default_tolerances_converge_like_ceres() {
     let mut bal = problem49();
     let s = bal
-        .solve(Loss::Trivial, &options(LinearSolverType::DenseSchur, false))
+        .solve(
+            RobustLoss::Trivial,
+            &options(LinearSolverType::DenseSchur, false),
+        )
         .unwrap();
     assert!(s.termination.is_converged(), "{}", s.report());
     assert!(
@@ -85,9 +94,9 @@ fn default_tolerances_converge_like_ceres() {
 
 #[test]
 fn fifty_iterations_dense_sparse_and_iterative_agree() {
-    let dense = solve(Loss::Trivial, LinearSolverType::DenseSchur);
-    let sparse = solve(Loss::Trivial, LinearSolverType::SparseSchur);
-    let iterative = solve(Loss::Trivial, LinearSolverType::IterativeSchur);
+    let dense = solve(RobustLoss::Trivial, LinearSolverType::DenseSchur);
+    let sparse = solve(RobustLoss::Trivial, LinearSolverType::SparseSchur);
+    let iterative = solve(RobustLoss::Trivial, LinearSolverType::IterativeSchur);
     assert!(dense.final_cost <= 1.33443e4, "{}", dense.final_cost);
     assert_eq!(sparse.linear_solver, LinearSolverType::SparseSchur);
     assert_eq!(iterative.linear_solver, LinearSolverType::IterativeSchur);
@@ -104,14 +113,20 @@ fn fifty_iterations_dense_sparse_and_iterative_agree() {
 
 #[test]
 fn fifty_iterations_with_robust_losses() {
-    let cauchy = solve(Loss::Cauchy(1.0), LinearSolverType::DenseSchur);
+    let cauchy = solve(
+        RobustLoss::Cauchy { scale: 1.0 },
+        LinearSolverType::DenseSchur,
+    );
     assert!(
         cauchy.final_cost <= 4.0980e3,
         "{} (Ceres: 4.097712e3)",
         cauchy.final_cost
     );
     assert_relative_eq!(cauchy.initial_cost, 3.102958e4, max_relative = 5e-7);
-    let huber = solve(Loss::Huber(1.0), LinearSolverType::DenseSchur);
+    let huber = solve(
+        RobustLoss::Huber { scale: 1.0 },
+        LinearSolverType::DenseSchur,
+    );
     assert!(huber.final_cost <= 7.6490e3, "{}", huber.final_cost);
     assert_relative_eq!(huber.initial_cost, 1.206505e5, max_relative = 5e-7);
 }
@@ -144,7 +159,7 @@ fn dubrovnik_parses_and_projects() {
         total += 0.5 * (r[0] * r[0] + r[1] * r[1]);
     }
     assert_relative_eq!(
-        bal.cost(Loss::Trivial).unwrap(),
+        bal.cost(RobustLoss::Trivial).unwrap(),
         total,
         max_relative = 1e-12
     );

@@ -1,7 +1,9 @@
 //! Full bundle adjustment with camera models: poses and points, and intrinsics when asked.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
-use ibc_bundle_adjust::{BaObservation, BundleAdjustment, BundleAdjustmentOptions, Loss};
+use ibc_bundle_adjust::{
+    BaObservation, BundleAdjustment, BundleAdjustmentOptions, RobustLoss, SolverOptions,
+};
 use ibc_camera_models::{Camera, CameraModel, KannalaBrandt, PinholeRadtan};
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector2, Vector3};
 use rand::{RngExt, SeedableRng};
@@ -112,15 +114,19 @@ fn perturbed(truth: &BundleAdjustment, seed: u64, intrinsics: bool) -> BundleAdj
 }
 
 fn options(intrinsics: bool) -> BundleAdjustmentOptions {
-    let mut o = BundleAdjustmentOptions::default();
-    o.optimize_intrinsics = intrinsics;
-    // Two fixed images remove the whole similarity gauge.
-    o.fixed_images = vec![0, 1];
-    o.loss = Loss::Trivial;
-    o.solver.function_tolerance = 1e-12;
-    o.solver.parameter_tolerance = 1e-12;
-    o.solver.max_iterations = 100;
-    o
+    BundleAdjustmentOptions {
+        optimize_intrinsics: intrinsics,
+        // Two fixed images remove the whole similarity gauge.
+        fixed_images: vec![0, 1],
+        loss: RobustLoss::Trivial,
+        solver: SolverOptions {
+            function_tolerance: 1e-12,
+            parameter_tolerance: 1e-12,
+            max_iterations: 100,
+            ..Default::default()
+        },
+        ..Default::default()
+    }
 }
 
 #[test]
@@ -173,7 +179,73 @@ fn bad_scenes_are_rejected() {
     let mut bad = truth.clone();
     bad.observations[0].pixel = Vector2::new(f64::NAN, 0.0);
     assert!(bad.solve(&options(false)).is_err());
-    let mut o = options(false);
-    o.fixed_images = vec![99];
+    let o = BundleAdjustmentOptions {
+        fixed_images: vec![99],
+        ..options(false)
+    };
     assert!(truth.solve(&o).is_err());
+}
+
+#[test]
+fn an_observation_behind_its_camera_at_the_start_is_left_out() {
+    let truth = scene(7, 8, 100);
+    let start = perturbed(&truth, 8, false);
+    // A new point behind image 2 (a pinhole camera) but in front of images across the circle.
+    let centre = truth.camera_from_world[2].inverse().translation.vector;
+    let x = centre * 1.3;
+    let mut bad = start.clone();
+    bad.points.push(x);
+    let point = bad.points.len() - 1;
+    let first = bad.observations.len();
+    for (i, pose) in truth.camera_from_world.iter().enumerate() {
+        let cam = &truth.cameras[truth.image_camera[i]];
+        if let Ok(px) = cam.project(&(pose * Point3::from(x)).coords)
+            && cam.in_image(&px)
+        {
+            bad.observations.push(BaObservation {
+                image: i,
+                point,
+                pixel: px,
+            });
+        }
+    }
+    assert!(bad.observations.len() - first >= 2);
+    bad.observations.push(BaObservation {
+        image: 2,
+        point,
+        pixel: Vector2::new(300.0, 200.0),
+    });
+    let result = bad.solve(&options(false)).unwrap();
+    assert_eq!(
+        result.excluded_observations,
+        vec![bad.observations.len() - 1]
+    );
+    assert!(result.final_rms < 1e-6, "{}", result.final_rms);
+    // The same solution as without that observation.
+    let mut without = bad.clone();
+    without.observations.pop();
+    let reference = without.solve(&options(false)).unwrap();
+    assert!(reference.excluded_observations.is_empty());
+    for (a, b) in result.points.iter().zip(&reference.points) {
+        assert!((a - b).norm() < 1e-12);
+    }
+    assert_eq!(
+        result.summary.final_cost.to_bits(),
+        reference.summary.final_cost.to_bits()
+    );
+    // A point seen only from behind is named.
+    let mut bad = start.clone();
+    bad.points.push(x);
+    bad.observations.push(BaObservation {
+        image: 2,
+        point: bad.points.len() - 1,
+        pixel: Vector2::new(300.0, 200.0),
+    });
+    assert_eq!(
+        bad.solve(&options(false)).unwrap_err(),
+        ibc_bundle_adjust::BundleAdjustError::PointWithoutObservations {
+            point: bad.points.len() - 1,
+            excluded: 1
+        }
+    );
 }

@@ -1,8 +1,11 @@
 //! Rig refinement on synthetic rigs: exact recovery from noise-free data, robustness to gross
-//! outliers with the Cauchy loss, and the covariance of the extrinsics.
+//! outliers with the Cauchy loss, the covariance of the extrinsics, and observations that
+//! cannot be evaluated at the start left out.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
-use ibc_bundle_adjust::{Loss, RigObservation, RigRefinement, RigRefinementOptions};
+use ibc_bundle_adjust::{
+    BundleAdjustError, RigObservation, RigRefinement, RigRefinementOptions, RobustLoss,
+};
 use ibc_camera_models::{Camera, CameraModel, KannalaBrandt, PinholeRadtan};
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector2, Vector3};
 use rand::{RngExt, SeedableRng};
@@ -190,8 +193,10 @@ fn noise_free_data_recovers_the_extrinsics_exactly() {
 fn cauchy_rejects_gross_outliers_where_least_squares_fails() {
     let s = scene(2, 4, 300, 12, 0.5, 0.05);
     let cauchy = s.start.refine(&RigRefinementOptions::default()).unwrap();
-    let mut trivial_options = RigRefinementOptions::default();
-    trivial_options.loss = Loss::Trivial;
+    let trivial_options = RigRefinementOptions {
+        loss: RobustLoss::Trivial,
+        ..Default::default()
+    };
     let trivial = s.start.refine(&trivial_options).unwrap();
     let (c_rot, c_trans) = extrinsic_errors(&cauchy.rig_from_camera, &s.truth.rig_from_camera);
     let (t_rot, t_trans) = extrinsic_errors(&trivial.rig_from_camera, &s.truth.rig_from_camera);
@@ -217,8 +222,10 @@ fn extrinsic_covariance_predicts_the_error_spread() {
     // normalized squared error (a χ² variable with 6 degrees of freedom) stays moderate.
     let sigma = 0.5;
     let s = scene(3, 4, 200, 10, sigma, 0.0);
-    let mut options = RigRefinementOptions::default();
-    options.loss = Loss::Trivial;
+    let options = RigRefinementOptions {
+        loss: RobustLoss::Trivial,
+        ..Default::default()
+    };
     let result = s.start.refine(&options).unwrap();
     for c in 1..4 {
         let cov = result.extrinsic_covariance[c].unwrap() * (sigma * sigma);
@@ -253,7 +260,109 @@ fn inconsistent_rigs_are_rejected() {
     let mut bad = s.start.clone();
     bad.rig_from_camera.pop();
     assert!(bad.refine(&RigRefinementOptions::default()).is_err());
-    let mut options = RigRefinementOptions::default();
-    options.reference_camera = 7;
+    let options = RigRefinementOptions {
+        reference_camera: 7,
+        ..Default::default()
+    };
     assert!(s.start.refine(&options).is_err());
+}
+
+/// Moves the map point of observation `i` behind its camera at the start estimate (mirrored
+/// through the camera's image plane), so that it cannot be projected there.
+fn put_behind_its_camera(rig: &mut RigRefinement, i: usize) {
+    let o = rig.observations[i];
+    let world_from_camera = rig.world_from_rig[o.frame] * rig.rig_from_camera[o.camera];
+    let mut p = world_from_camera.inverse_transform_point(&o.world_point.into());
+    p.z = -p.z;
+    rig.observations[i].world_point = (world_from_camera * p).coords;
+}
+
+#[test]
+fn observations_behind_their_camera_at_the_start_are_left_out() {
+    let s = scene(5, 4, 60, 10, 0.5, 0.0);
+    // Five observations of camera 2 (a pinhole camera, which cannot project behind it), in
+    // different frame sets.
+    let behind: Vec<usize> = s
+        .start
+        .observations
+        .iter()
+        .enumerate()
+        .filter(|(_, o)| o.camera == 2 && o.frame % 7 == 3)
+        .step_by(4)
+        .map(|(i, _)| i)
+        .take(5)
+        .collect();
+    assert_eq!(behind.len(), 5);
+    let mut bad = s.start.clone();
+    for &i in &behind {
+        put_behind_its_camera(&mut bad, i);
+    }
+    let options = RigRefinementOptions::default();
+    let result = bad.refine(&options).unwrap();
+    assert_eq!(result.excluded_observations, behind);
+    assert!(
+        result.summary.termination.is_converged(),
+        "{}",
+        result.summary.report()
+    );
+    assert_eq!(
+        result.summary.num_residual_blocks,
+        bad.observations.len() - 5
+    );
+    // The same solution as without those observations.
+    let mut without = s.start.clone();
+    without.observations = s
+        .start
+        .observations
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| !behind.contains(i))
+        .map(|(_, o)| *o)
+        .collect();
+    let reference = without.refine(&options).unwrap();
+    assert!(reference.excluded_observations.is_empty());
+    for (a, b) in result
+        .rig_from_camera
+        .iter()
+        .zip(&reference.rig_from_camera)
+        .chain(result.world_from_rig.iter().zip(&reference.world_from_rig))
+    {
+        assert!(a.rotation.angle_to(&b.rotation) < 1e-12);
+        assert!((a.translation.vector - b.translation.vector).norm() < 1e-12);
+    }
+    assert!((result.summary.final_cost - reference.summary.final_cost).abs() < 1e-9);
+    assert!((result.final_rms - reference.final_rms).abs() < 1e-12);
+    let (rot, trans) = extrinsic_errors(&result.rig_from_camera, &s.truth.rig_from_camera);
+    assert!(rot < 5e-4 && trans < 5e-3, "{rot} rad, {trans} m");
+}
+
+#[test]
+fn a_camera_or_frame_set_left_without_observations_is_named() {
+    let s = scene(6, 4, 8, 6, 0.0, 0.0);
+    let mut bad = s.start.clone();
+    let of_camera_2: Vec<usize> = (0..bad.observations.len())
+        .filter(|&i| bad.observations[i].camera == 2)
+        .collect();
+    for &i in &of_camera_2 {
+        put_behind_its_camera(&mut bad, i);
+    }
+    let err = bad.refine(&RigRefinementOptions::default()).unwrap_err();
+    assert_eq!(
+        err,
+        BundleAdjustError::CameraWithoutObservations {
+            camera: 2,
+            excluded: of_camera_2.len(),
+        }
+    );
+    assert!(err.to_string().contains("camera 2"), "{err}");
+    // A frame set with no observation at all.
+    let mut bad = s.start.clone();
+    bad.observations.retain(|o| o.frame != 5);
+    assert_eq!(
+        bad.refine(&RigRefinementOptions::default()).unwrap_err(),
+        BundleAdjustError::FrameWithoutObservations {
+            frame: 5,
+            excluded: 0
+        }
+    );
 }

@@ -8,21 +8,22 @@ mod common;
 use approx::assert_relative_eq;
 use common::{perturb, split_problem, synthetic_bal};
 use ibc_bundle_adjust::{
-    CostFunction, Jacobians, LinearSolverType, Loss, Problem, SolverOptions, Termination,
+    CostFunction, Jacobians, LinearSolverType, Problem, RobustLoss, SolverOptions, Termination,
 };
 use nalgebra::{DMatrix, DVector, SMatrix};
 
 fn options(solver: LinearSolverType) -> SolverOptions {
-    let mut o = SolverOptions::default();
-    o.linear_solver = solver;
-    o.max_iterations = 100;
-    o
+    SolverOptions {
+        linear_solver: solver,
+        max_iterations: 100,
+        ..Default::default()
+    }
 }
 
 #[test]
 fn reduced_solvers_agree_on_a_split_camera_problem() {
     let truth = synthetic_bal(7, 8, 120, 0.5);
-    let truth_cost = truth.cost(Loss::Trivial).unwrap();
+    let truth_cost = truth.cost(RobustLoss::Trivial).unwrap();
     let mut bal = truth.clone();
     perturb(&mut bal, 8, 0.01, 0.05, 0.05);
     let mut costs = Vec::new();
@@ -31,12 +32,14 @@ fn reduced_solvers_agree_on_a_split_camera_problem() {
         LinearSolverType::SparseSchur,
         LinearSolverType::IterativeSchur,
     ] {
-        let (mut problem, blocks) = split_problem(&bal, Loss::Trivial);
+        let (mut problem, blocks) = split_problem(&bal, RobustLoss::Trivial);
         // Gauge: hold the first pose and the second camera's intrinsics.
         problem.set_constant(blocks.poses[0], true).unwrap();
         problem.set_constant(blocks.intrinsics[1], true).unwrap();
-        let mut o = options(solver);
-        o.eta = 1e-3;
+        let o = SolverOptions {
+            eta: 1e-3,
+            ..options(solver)
+        };
         let summary = problem.solve(&o).unwrap();
         assert!(
             summary.termination.is_converged(),
@@ -57,17 +60,19 @@ fn reduced_solvers_agree_on_a_split_camera_problem() {
 fn eliminating_points_matches_solving_without_elimination() {
     let mut bal = synthetic_bal(11, 5, 40, 0.3);
     perturb(&mut bal, 12, 0.01, 0.05, 0.05);
-    let (mut eliminated, _) = bal.to_problem(Loss::Cauchy(2.0)).unwrap();
-    let (mut plain, blocks) = bal.to_problem(Loss::Cauchy(2.0)).unwrap();
+    let (mut eliminated, _) = bal.to_problem(RobustLoss::Cauchy { scale: 2.0 }).unwrap();
+    let (mut plain, blocks) = bal.to_problem(RobustLoss::Cauchy { scale: 2.0 }).unwrap();
     for &p in &blocks.points {
         plain.set_eliminated(p, false).unwrap();
     }
-    let mut o = options(LinearSolverType::DenseSchur);
-    o.automatic_elimination = false;
-    o.max_iterations = 8;
-    o.function_tolerance = 0.0;
-    o.parameter_tolerance = 0.0;
-    o.gradient_tolerance = 0.0;
+    let o = SolverOptions {
+        automatic_elimination: false,
+        max_iterations: 8,
+        function_tolerance: 0.0,
+        parameter_tolerance: 0.0,
+        gradient_tolerance: 0.0,
+        ..options(LinearSolverType::DenseSchur)
+    };
     let a = eliminated.solve(&o).unwrap();
     let b = plain.solve(&o).unwrap();
     assert_eq!(a.num_eliminated, 3 * bal.points.len());
@@ -85,9 +90,11 @@ fn results_are_deterministic_per_thread_count() {
     perturb(&mut bal, 22, 0.01, 0.05, 0.05);
     let run = |threads: usize| {
         let mut b = bal.clone();
-        let mut o = options(LinearSolverType::DenseSchur);
-        o.num_threads = threads;
-        let s = b.solve(Loss::Huber(1.0), &o).unwrap();
+        let o = SolverOptions {
+            num_threads: threads,
+            ..options(LinearSolverType::DenseSchur)
+        };
+        let s = b.solve(RobustLoss::Huber { scale: 1.0 }, &o).unwrap();
         assert_eq!(s.num_threads, threads);
         (s.final_cost, b.cameras.clone(), b.points.clone())
     };
@@ -144,7 +151,7 @@ fn covariance_matches_the_inverse_normal_matrix() {
                     a,
                     b: [1.0, 0.5, -0.3],
                 },
-                Loss::Trivial,
+                RobustLoss::Trivial,
                 &[e, f],
             )
             .unwrap();
@@ -180,7 +187,7 @@ fn covariance_matches_the_inverse_normal_matrix() {
                     a,
                     b: [1.0, 0.5, -0.3],
                 },
-                Loss::Trivial,
+                RobustLoss::Trivial,
                 &[e, f],
             )
             .unwrap();
@@ -216,13 +223,15 @@ fn a_singular_step_raises_the_damping() {
     let mut problem = Problem::new();
     let x = problem.add_parameter_block(&[5.0, 3.0]).unwrap();
     problem
-        .add_residual_block(IgnoresY, Loss::Trivial, &[x])
+        .add_residual_block(IgnoresY, RobustLoss::Trivial, &[x])
         .unwrap();
-    let mut o = SolverOptions::default();
     // The damping of the y column, min_lm_diagonal / μ, underflows to zero at the start: the
     // damped normal matrix is singular until μ has shrunk enough.
-    o.min_lm_diagonal = 1e-310;
-    o.initial_trust_region_radius = 1e16;
+    let o = SolverOptions {
+        min_lm_diagonal: 1e-310,
+        initial_trust_region_radius: 1e16,
+        ..Default::default()
+    };
     let summary = problem.solve(&o).unwrap();
     let invalid: Vec<_> = summary.log[1..]
         .iter()
@@ -244,7 +253,7 @@ fn a_singular_step_raises_the_damping() {
 fn constant_blocks_do_not_move_and_fixed_cost_is_counted() {
     let mut bal = synthetic_bal(31, 4, 30, 0.2);
     perturb(&mut bal, 32, 0.01, 0.05, 0.05);
-    let (mut problem, blocks) = bal.to_problem(Loss::Trivial).unwrap();
+    let (mut problem, blocks) = bal.to_problem(RobustLoss::Trivial).unwrap();
     let before = problem.parameter_block(blocks.cameras[0]).unwrap().to_vec();
     problem.set_constant(blocks.cameras[0], true).unwrap();
     // A point seen only by the constant camera: its residual still counts as free (the
@@ -255,7 +264,7 @@ fn constant_blocks_do_not_move_and_fixed_cost_is_counted() {
         &before[..]
     );
     assert!(summary.final_cost < summary.initial_cost);
-    let mut all_constant = bal.to_problem(Loss::Trivial).unwrap();
+    let mut all_constant = bal.to_problem(RobustLoss::Trivial).unwrap();
     for &b in all_constant.1.cameras.iter().chain(&all_constant.1.points) {
         all_constant.0.set_constant(b, true).unwrap();
     }
@@ -263,7 +272,7 @@ fn constant_blocks_do_not_move_and_fixed_cost_is_counted() {
     assert_eq!(s.termination, Termination::NoFreeParameters);
     assert_relative_eq!(
         s.initial_cost,
-        bal.cost(Loss::Trivial).unwrap(),
+        bal.cost(RobustLoss::Trivial).unwrap(),
         max_relative = 1e-12
     );
     assert_eq!(s.initial_cost, s.final_cost);
@@ -273,7 +282,9 @@ fn constant_blocks_do_not_move_and_fixed_cost_is_counted() {
 fn iteration_log_is_consistent() {
     let mut bal = synthetic_bal(41, 5, 50, 0.3);
     perturb(&mut bal, 42, 0.01, 0.05, 0.05);
-    let s = bal.solve(Loss::Trivial, &SolverOptions::default()).unwrap();
+    let s = bal
+        .solve(RobustLoss::Trivial, &SolverOptions::default())
+        .unwrap();
     assert_eq!(s.log[0].iteration, 0);
     assert_eq!(s.log.len(), s.iterations + 1);
     assert_eq!(

@@ -2,6 +2,9 @@
 
 use crate::quaternion_mean::UNIT_NORM_TOLERANCE;
 
+/// `Result` with [`RigAveragingError`] as the default error.
+pub type Result<T, E = RigAveragingError> = std::result::Result<T, E>;
+
 /// Everything that can go wrong when averaging rotations and poses or initializing a rig.
 ///
 /// Each variant names the input that was wrong and why, so a caller can fix the data rather
@@ -63,10 +66,13 @@ pub enum RigAveragingError {
         index: usize,
     },
 
-    /// An option of the robust mean is out of its domain.
-    #[error("invalid robust averaging option: {reason}")]
+    /// An option of the robust mean ([`RobustOptions`](crate::RobustOptions)) is out of its
+    /// domain.
+    #[error("invalid robust averaging option `{option}`: {reason}")]
     InvalidRobustOptions {
-        /// What is wrong with the options.
+        /// The option's field name, for instance `rotation_scale`.
+        option: &'static str,
+        /// What is wrong with it.
         reason: &'static str,
     },
 

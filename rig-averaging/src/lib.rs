@@ -2,13 +2,18 @@
 
 mod eigen4;
 mod error;
+mod parallel;
 mod pose_mean;
 mod quaternion_mean;
 mod rig_init;
 mod robust;
 mod scoring;
 
-pub use error::RigAveragingError;
+/// The linear-algebra crate of this crate's API (`Isometry3`, `UnitQuaternion`, ...), so
+/// callers can use the very version it was built with.
+pub use nalgebra;
+
+pub use error::{Result, RigAveragingError};
 pub use pose_mean::{PoseMean, pose_mean};
 pub use quaternion_mean::{
     MarkleyAccumulator, QuaternionMean, UNIT_NORM_TOLERANCE, quaternion_mean,
@@ -24,3 +29,14 @@ pub use robust::{
 pub use scoring::{
     DEFAULT_FAILURE_PENALTY_PX, ImageScore, ImageScorer, Observation, ObservationScorer,
 };
+
+/// The last field of every options struct of this crate (`non_exhaustive`), set by the
+/// struct's `Default`.
+///
+/// Code outside the crate cannot make one, so it writes an options struct as
+/// `RobustOptions { max_iterations: 20, ..Default::default() }`: fields can then be added
+/// without breaking it, as `#[non_exhaustive]` would guarantee, while the one-expression form
+/// stays possible (the pattern of faer's parameter structs).
+#[doc(hidden)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct NonExhaustive(pub(crate) ());

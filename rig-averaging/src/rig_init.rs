@@ -20,14 +20,16 @@
 //!
 //! Besides the paper's single-set hypotheses, this module scores the extrinsics averaged over
 //! all complete sets (per camera, by [`RigInitOptions::extrinsic_averaging`]) and reports both
-//! scores. Hypotheses x sets are evaluated in parallel with rayon; each hypothesis's errors
-//! are summed in set and camera order, so the result does not depend on the thread count.
+//! scores. Hypotheses x sets are evaluated in parallel with rayon (the default `rayon`
+//! feature; sequentially without it); each hypothesis's errors are summed in set and camera
+//! order, so the result depends neither on the thread count nor on the feature.
 //! Cost: `O(H * (S * K + observations))` for `H` complete sets, `S` sets, `K` cameras.
 
 use nalgebra::Isometry3;
-use rayon::prelude::*;
 
+use crate::NonExhaustive;
 use crate::error::RigAveragingError;
+use crate::parallel::{first_error, map_indexed};
 use crate::pose_mean::{PoseMean, pose_mean, weighted_pose_mean};
 use crate::quaternion_mean::check_unit;
 use crate::robust::{RobustOptions, robust_pose_mean};
@@ -57,9 +59,15 @@ impl Averaging {
 /// The paper scores only single-set hypotheses and averages rig poses plainly. The default
 /// keeps the plain rig-pose averaging of the paper, and additionally scores the extrinsics
 /// averaged robustly over all complete sets (this crate's addition; the winner is still the
-/// lowest score).
+/// lowest score). Write them as one expression:
+///
+/// ```
+/// use ibc_rig_averaging::{Averaging, RigInitOptions};
+///
+/// let options = RigInitOptions { extrinsic_averaging: Averaging::Plain, ..Default::default() };
+/// assert!(options.averaged_extrinsics);
+/// ```
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[non_exhaustive]
 pub struct RigInitOptions {
     /// Also score the extrinsics averaged over all complete sets (default `true`).
     pub averaged_extrinsics: bool,
@@ -69,6 +77,9 @@ pub struct RigInitOptions {
     /// How a set's per-camera rig pose estimates are averaged (default `Averaging::Plain`,
     /// the paper's).
     pub rig_pose_averaging: Averaging,
+    /// Keeps the struct open to new fields: write it with `..Default::default()`.
+    #[doc(hidden)]
+    pub non_exhaustive: NonExhaustive,
 }
 
 impl Default for RigInitOptions {
@@ -77,24 +88,28 @@ impl Default for RigInitOptions {
             averaged_extrinsics: true,
             extrinsic_averaging: Averaging::Robust(RobustOptions::default()),
             rig_pose_averaging: Averaging::Plain,
+            non_exhaustive: NonExhaustive(()),
         }
     }
 }
 
 impl RigInitOptions {
     /// Sets whether the averaged extrinsics are scored too.
+    #[must_use]
     pub fn with_averaged_extrinsics(mut self, enabled: bool) -> Self {
         self.averaged_extrinsics = enabled;
         self
     }
 
     /// Sets how extrinsics are averaged over complete sets.
+    #[must_use]
     pub fn with_extrinsic_averaging(mut self, averaging: Averaging) -> Self {
         self.extrinsic_averaging = averaging;
         self
     }
 
     /// Sets how rig pose estimates are averaged within a set.
+    #[must_use]
     pub fn with_rig_pose_averaging(mut self, averaging: Averaging) -> Self {
         self.rig_pose_averaging = averaging;
         self
@@ -260,10 +275,9 @@ where
     }
 
     let rig_pose_averaging = options.rig_pose_averaging;
-    let results: Vec<(HypothesisScore, f64)> = hypotheses
-        .par_iter()
-        .map(|hypothesis| score_hypothesis(&prepared, hypothesis, scorer, &rig_pose_averaging))
-        .collect::<Result<_, _>>()?;
+    let results: Vec<(HypothesisScore, f64)> = first_error(map_indexed(&hypotheses, 1, |_, h| {
+        score_hypothesis(&prepared, h, scorer, &rig_pose_averaging)
+    }))?;
 
     let set_scores: Vec<(usize, HypothesisScore)> = complete
         .iter()
@@ -279,13 +293,9 @@ where
     .ok_or(RigAveragingError::NoFiniteScore)?;
 
     let hypothesis = &hypotheses[chosen];
-    let world_from_rig = prepared
-        .world_from_camera
-        .par_iter()
-        .map(|set| {
-            rig_pose_estimate(set, &hypothesis.camera_from_rig, &rig_pose_averaging).map(|m| m.mean)
-        })
-        .collect::<Result<Vec<_>, _>>()?;
+    let world_from_rig = first_error(map_indexed(&prepared.world_from_camera, 1, |_, set| {
+        rig_pose_estimate(set, &hypothesis.camera_from_rig, &rig_pose_averaging).map(|m| m.mean)
+    }))?;
     let averaged = options.averaged_extrinsics.then(|| {
         let last = hypotheses.len() - 1;
         (hypotheses[last].rig_from_camera.clone(), results[last].0)
@@ -361,11 +371,9 @@ where
     averaging.validate()?;
     let camera_from_rig: Vec<Isometry3<f64>> =
         rig_from_camera.iter().map(Isometry3::inverse).collect();
-    prepared
-        .world_from_camera
-        .par_iter()
-        .map(|set| rig_pose_estimate(set, &camera_from_rig, averaging))
-        .collect()
+    first_error(map_indexed(&prepared.world_from_camera, 1, |_, set| {
+        rig_pose_estimate(set, &camera_from_rig, averaging)
+    }))
 }
 
 /// Validates the frame sets and inverts the camera poses.
@@ -466,14 +474,12 @@ fn score_hypothesis<Sc>(
 where
     Sc: ImageScorer + ?Sized,
 {
-    let per_set: Vec<SetScore> = prepared
-        .world_from_camera
-        .par_iter()
-        .enumerate()
-        // A set is a few microseconds of work; chunks of 16 keep rayon's splitting overhead
-        // small while leaving enough chunks to balance.
-        .with_min_len(16)
-        .map(|(s, set)| {
+    // A set is a few microseconds of work; chunks of 16 keep rayon's splitting overhead small
+    // while leaving enough chunks to balance.
+    let per_set: Vec<SetScore> = first_error(map_indexed(
+        &prepared.world_from_camera,
+        16,
+        |s, set| -> Result<SetScore, RigAveragingError> {
             let rig_pose = rig_pose_estimate(set, &hypothesis.camera_from_rig, averaging)?;
             let rig_from_world = rig_pose.mean.inverse();
             let mut total = ImageScore::default();
@@ -487,8 +493,8 @@ where
                 observations: total.observations,
                 conditioning: rig_pose.rotation.conditioning,
             })
-        })
-        .collect::<Result<_, RigAveragingError>>()?;
+        },
+    ))?;
     let (error_sum, observations, conditioning) =
         per_set
             .iter()

@@ -25,6 +25,7 @@
 
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 
+use crate::NonExhaustive;
 use crate::error::RigAveragingError;
 use crate::pose_mean::{PoseMean, check_translation, weighted_pose_mean};
 use crate::quaternion_mean::{QuaternionMean, check_unit, max_weight, scaled_weight};
@@ -49,8 +50,15 @@ pub const MIN_TRANSLATION_SCALE: f64 = 1e-12;
 ///
 /// The paper averages without robustness; these defaults are this crate's: scales estimated
 /// from the data, at most 50 iterations, convergence when a step is below `1e-10` of the scale.
+/// Write them as one expression:
+///
+/// ```
+/// use ibc_rig_averaging::RobustOptions;
+///
+/// let options = RobustOptions { rotation_scale: Some(0.01), ..Default::default() };
+/// assert_eq!(options.max_iterations, 50);
+/// ```
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[non_exhaustive]
 pub struct RobustOptions {
     /// Cauchy scale of the rotation residual angle, radians; `None` (default) estimates it as
     /// [`ADAPTIVE_SCALE_FACTOR`] times the median residual at the medoid, at least
@@ -64,6 +72,9 @@ pub struct RobustOptions {
     /// Convergence threshold on the step of the mean, in units of the scales (default 1e-10):
     /// stop when `angle step / c_r` and `translation step / c_t` are both below it.
     pub tolerance: f64,
+    /// Keeps the struct open to new fields: write it with `..Default::default()`.
+    #[doc(hidden)]
+    pub non_exhaustive: NonExhaustive,
 }
 
 impl Default for RobustOptions {
@@ -73,30 +84,35 @@ impl Default for RobustOptions {
             translation_scale: None,
             max_iterations: 50,
             tolerance: 1e-10,
+            non_exhaustive: NonExhaustive(()),
         }
     }
 }
 
 impl RobustOptions {
     /// Sets a fixed rotation scale in radians.
+    #[must_use]
     pub fn with_rotation_scale(mut self, radians: f64) -> Self {
         self.rotation_scale = Some(radians);
         self
     }
 
     /// Sets a fixed translation scale in metres.
+    #[must_use]
     pub fn with_translation_scale(mut self, metres: f64) -> Self {
         self.translation_scale = Some(metres);
         self
     }
 
     /// Sets the maximum number of iterations.
+    #[must_use]
     pub fn with_max_iterations(mut self, iterations: usize) -> Self {
         self.max_iterations = iterations;
         self
     }
 
     /// Sets the convergence tolerance (in units of the scales).
+    #[must_use]
     pub fn with_tolerance(mut self, tolerance: f64) -> Self {
         self.tolerance = tolerance;
         self
@@ -107,22 +123,26 @@ impl RobustOptions {
         let bad_scale = |s: Option<f64>| s.is_some_and(|s| !(s.is_finite() && s > 0.0));
         if bad_scale(self.rotation_scale) {
             return Err(RigAveragingError::InvalidRobustOptions {
-                reason: "rotation_scale must be finite and positive",
+                option: "rotation_scale",
+                reason: "must be finite and positive",
             });
         }
         if bad_scale(self.translation_scale) {
             return Err(RigAveragingError::InvalidRobustOptions {
-                reason: "translation_scale must be finite and positive",
+                option: "translation_scale",
+                reason: "must be finite and positive",
             });
         }
         if self.max_iterations == 0 {
             return Err(RigAveragingError::InvalidRobustOptions {
-                reason: "max_iterations must be at least 1",
+                option: "max_iterations",
+                reason: "must be at least 1",
             });
         }
         if !(self.tolerance.is_finite() && self.tolerance >= 0.0) {
             return Err(RigAveragingError::InvalidRobustOptions {
-                reason: "tolerance must be finite and non-negative",
+                option: "tolerance",
+                reason: "must be finite and non-negative",
             });
         }
         Ok(())

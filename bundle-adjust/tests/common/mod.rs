@@ -1,9 +1,8 @@
 //! Synthetic problems shared by the integration tests.
 #![allow(clippy::unwrap_used, clippy::expect_used, dead_code)]
 
-use ibc_bundle_adjust::manifold::{se3_from_params, se3_to_params, skew};
 use ibc_bundle_adjust::{
-    BalObservation, BalProblem, CostFunction, Jacobians, Loss, ParameterBlockId, Problem,
+    BalObservation, BalProblem, CostFunction, Jacobians, ParameterBlockId, Problem, RobustLoss,
     Se3Manifold,
 };
 use nalgebra::{Isometry3, Matrix2x3, Matrix3, SMatrix, Translation3, UnitQuaternion, Vector3};
@@ -133,7 +132,9 @@ impl CostFunction for SplitReprojection {
         &[7, 3, 3]
     }
     fn evaluate(&self, p: &[&[f64]], r: &mut [f64], j: Option<&mut Jacobians<'_>>) -> bool {
-        let pose = se3_from_params(p[0]);
+        let Some(pose) = Se3Manifold::pose(p[0]) else {
+            return false;
+        };
         let (f, k1, k2) = (p[1][0], p[1][1], p[1][2]);
         let x = Vector3::new(p[2][0], p[2][1], p[2][2]);
         let q = pose.rotation * x + pose.translation.vector;
@@ -157,7 +158,7 @@ impl CostFunction for SplitReprojection {
         let mut jp = SMatrix::<f64, 2, 6>::zeros();
         jp.fixed_view_mut::<2, 3>(0, 0).copy_from(&(m * rot));
         jp.fixed_view_mut::<2, 3>(0, 3)
-            .copy_from(&(-m * rot * skew(&x)));
+            .copy_from(&(-m * rot * x.cross_matrix()));
         j.set(0, &jp);
         j.set(
             1,
@@ -184,7 +185,7 @@ pub struct SplitBlocks {
 
 /// A problem with SE(3) poses, separate intrinsics and points from a BAL problem: residuals
 /// with two reduced arguments, a manifold, and a dynamic-size Schur complement.
-pub fn split_problem(bal: &BalProblem, loss: Loss) -> (Problem, SplitBlocks) {
+pub fn split_problem(bal: &BalProblem, loss: RobustLoss) -> (Problem, SplitBlocks) {
     let mut problem = Problem::new();
     let mut poses = Vec::new();
     let mut intrinsics = Vec::new();
@@ -196,7 +197,7 @@ pub fn split_problem(bal: &BalProblem, loss: Loss) -> (Problem, SplitBlocks) {
         );
         poses.push(
             problem
-                .add_manifold_block(&se3_to_params(&pose), Se3Manifold)
+                .add_manifold_block(&Se3Manifold::params(&pose), Se3Manifold)
                 .unwrap(),
         );
         intrinsics.push(problem.add_parameter_block(&c[6..9]).unwrap());
