@@ -224,8 +224,13 @@ fn stages(c: &mut Criterion) {
             })
             .collect(),
     };
-    let mut one_thread = RigRefinementOptions::default();
-    one_thread.solver.num_threads = 1;
+    let one_thread = RigRefinementOptions {
+        solver: ibc_bundle_adjust::SolverOptions {
+            num_threads: 1,
+            ..Default::default()
+        },
+        ..Default::default()
+    };
     g.bench_function("refinement, 1 thread (baseline)", |b| {
         b.iter(|| problem.refine(&one_thread).unwrap())
     });

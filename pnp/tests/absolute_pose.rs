@@ -281,7 +281,7 @@ fn bad_input_is_a_typed_error_naming_the_culprit() {
         ));
     }
     let options = AbsolutePoseOptions {
-        ransac: ibc_pnp::RansacOptions {
+        ransac: RansacOptions {
             refine: ibc_pnp::RefineOptions {
                 loss: ibc_pnp::RobustLoss::Huber { scale: -1.0 },
                 ..Default::default()

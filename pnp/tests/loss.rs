@@ -1,6 +1,6 @@
-//! The robust loss: `evaluate` is bit for bit the bundle adjuster's `Loss::evaluate`
-//! (`bundle-adjust/src/loss.rs`, Ceres's formulas with its floor on rho'), agrees with the
-//! textbook definitions, and refuses bad scales with a typed error.
+//! The robust loss, which the bundle adjuster uses too: `evaluate` gives Ceres's formulas with
+//! its floor on rho' (bit for bit what `ibc-bundle-adjust`'s own loss gave before it took this
+//! type), agrees with the textbook definitions, and refuses bad scales with a typed error.
 #![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)]
 
 use ibc_pnp::{PnpError, RobustLoss};

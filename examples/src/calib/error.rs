@@ -111,7 +111,16 @@ pub enum CalibrationError {
     Initialization(#[from] RigAveragingError),
     /// The non-linear refinement failed.
     #[error("refinement: {0}")]
-    Refinement(String),
+    Refinement(#[from] ibc_bundle_adjust::BundleAdjustError),
+    /// A camera has no observation the refinement can use.
+    #[error(
+        "refinement: camera {camera} (in the log's order) has no usable observation: is it \
+         localized in any frame set?"
+    )]
+    CameraWithoutObservations {
+        /// Index of the camera.
+        camera: usize,
+    },
     /// The ground truth does not fit the calibration's log.
     #[error("ground truth: {0}")]
     Truth(#[from] TruthMismatch),

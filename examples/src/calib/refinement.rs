@@ -14,10 +14,10 @@
 //! at the solution (rig poses marginalized), scaled by the a-posteriori variance factor
 //! `2 cost / (residuals - unknowns)`, and are expressed in the rig frame.
 
-use ibc_bundle_adjust::Loss;
 use ibc_bundle_adjust::rig::{
     RigObservation as BaObservation, RigRefinement, RigRefinementOptions,
 };
+use ibc_bundle_adjust::{RobustLoss, SolverOptions};
 use ibc_camera_models::{Camera, CameraModel};
 use nalgebra::{Isometry3, Matrix3, Matrix6, Point3, Vector2, Vector3};
 
@@ -131,10 +131,6 @@ pub fn reprojection_error(
     reprojection_residual(camera, rig_from_camera, world_from_rig, observation).map(|r| r.norm())
 }
 
-fn refinement_error(e: impl std::fmt::Display) -> CalibrationError {
-    CalibrationError::Refinement(e.to_string())
-}
-
 /// Worker threads of the solver. Fixed, so the result is the same on every machine (the
 /// solver is deterministic for a fixed thread count).
 pub const REFINEMENT_THREADS: usize = 2;
@@ -143,8 +139,9 @@ pub const REFINEMENT_THREADS: usize = 2;
 /// `world_from_rig` (camera 0's extrinsic is taken as the identity).
 ///
 /// # Errors
-/// [`CalibrationError::Refinement`] if the problem cannot be built or solved (a camera
-/// without usable observations, a singular system).
+/// [`CalibrationError::InvalidInput`] when the extrinsics and cameras differ in number,
+/// [`CalibrationError::CameraWithoutObservations`] for a camera without usable observations,
+/// [`CalibrationError::Refinement`] if the problem cannot be built or solved.
 pub fn refine(
     cameras: &[Camera],
     rig_from_camera: &[Isometry3<f64>],
@@ -154,7 +151,7 @@ pub fn refine(
 ) -> Result<Refinement, CalibrationError> {
     let k = cameras.len();
     if rig_from_camera.len() != k || k == 0 {
-        return Err(CalibrationError::Refinement(format!(
+        return Err(CalibrationError::InvalidInput(format!(
             "{} extrinsics for {k} cameras",
             rig_from_camera.len()
         )));
@@ -188,10 +185,8 @@ pub fn refine(
             pixel: o.pixel,
         });
     }
-    if let Some(c) = used_cameras.iter().position(|u| !u) {
-        return Err(CalibrationError::Refinement(format!(
-            "camera {c} has no usable observation"
-        )));
+    if let Some(camera) = used_cameras.iter().position(|u| !u) {
+        return Err(CalibrationError::CameraWithoutObservations { camera });
     }
     let problem = RigRefinement {
         cameras: cameras.to_vec(),
@@ -199,13 +194,20 @@ pub fn refine(
         world_from_rig: poses,
         observations: kept,
     };
-    let mut ba = RigRefinementOptions::default();
-    ba.loss = Loss::Cauchy(options.cauchy_scale_px);
-    ba.reference_camera = 0;
-    ba.covariance = true;
-    ba.solver.max_iterations = options.max_iterations;
-    ba.solver.num_threads = REFINEMENT_THREADS;
-    let result = problem.refine(&ba).map_err(refinement_error)?;
+    let ba = RigRefinementOptions {
+        loss: RobustLoss::Cauchy {
+            scale: options.cauchy_scale_px,
+        },
+        reference_camera: 0,
+        covariance: true,
+        solver: SolverOptions {
+            max_iterations: options.max_iterations,
+            num_threads: REFINEMENT_THREADS,
+            ..Default::default()
+        },
+        ..Default::default()
+    };
+    let result = problem.refine(&ba)?;
     let residuals = 2 * problem.observations.len();
     let unknowns = 6 * (k - 1) + 6 * problem.world_from_rig.len();
     let factor = (residuals > unknowns)

@@ -122,14 +122,15 @@ pub struct IntrinsicsOptions {
 
 impl Default for IntrinsicsOptions {
     fn default() -> Self {
-        let mut solver = SolverOptions::default();
-        solver.function_tolerance = 1e-12;
-        solver.parameter_tolerance = 1e-12;
-        solver.max_iterations = 100;
         Self {
             kb_init: KbInitOptions::default(),
             min_normal_spread_deg: MIN_NORMAL_SPREAD_DEG,
-            solver,
+            solver: SolverOptions {
+                function_tolerance: 1e-12,
+                parameter_tolerance: 1e-12,
+                max_iterations: 100,
+                ..Default::default()
+            },
             non_exhaustive: crate::NonExhaustive(()),
         }
     }

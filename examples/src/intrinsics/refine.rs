@@ -13,9 +13,8 @@
 //! the a-posteriori variance factor `sum r^2 / (m - n)` (`m` residual coordinates,
 //! `n = 8 + 6 * images` unknowns): the estimated pixel noise variance.
 
-use ibc_bundle_adjust::manifold::{se3_from_params, se3_to_params, skew};
 use ibc_bundle_adjust::{
-    CostFunction, Jacobians, Loss, Problem, Se3Manifold, SolverOptions, Summary,
+    CostFunction, Jacobians, Problem, RobustLoss, Se3Manifold, SolverOptions, Summary,
 };
 use ibc_camera_models::{Camera, CameraModel};
 use nalgebra::{Isometry3, Matrix2x6, Matrix3x6, Point3, SMatrix, Vector2};
@@ -53,7 +52,7 @@ pub(crate) fn corner_terms(
     d_point_d_delta.fixed_view_mut::<3, 3>(0, 0).copy_from(&r);
     d_point_d_delta
         .fixed_view_mut::<3, 3>(0, 3)
-        .copy_from(&(-r * skew(&point.coords)));
+        .copy_from(&(-r * point.coords.cross_matrix()));
     Some(CornerTerms {
         residual: j.pixel - observed,
         d_intrinsics: j.d_pixel_d_params.fixed_columns::<8>(0).into_owned(),
@@ -97,7 +96,9 @@ impl CostFunction for ImageReprojection {
         let Ok(camera) = self.model.camera(self.width, self.height, params) else {
             return false;
         };
-        let pose = se3_from_params(pose);
+        let Some(pose) = Se3Manifold::pose(pose) else {
+            return false;
+        };
         let Some(jacobians) = jacobians else {
             for (k, (x, obs)) in self.points.iter().zip(&self.observed).enumerate() {
                 let Ok(pixel) = camera.project(&(pose * x).coords) else {
@@ -177,7 +178,7 @@ pub(crate) fn refine(
     let intrinsics = problem.add_parameter_block(initial)?;
     let mut poses = Vec::with_capacity(initial_poses.len());
     for (i, ((points, pixels), pose)) in data.iter().zip(initial_poses).enumerate() {
-        let block = problem.add_manifold_block(&se3_to_params(pose), Se3Manifold)?;
+        let block = problem.add_manifold_block(&Se3Manifold::params(pose), Se3Manifold)?;
         problem.set_eliminated(block, true)?;
         let sqrt_weights = match weights.and_then(|w| w.get(i)) {
             Some(w) => w.iter().map(|w| w.max(0.0).sqrt()).collect(),
@@ -192,7 +193,7 @@ pub(crate) fn refine(
                 observed: pixels.clone(),
                 sqrt_weights,
             },
-            Loss::Trivial,
+            RobustLoss::Trivial,
             &[intrinsics, block],
         )?;
         poses.push(block);
@@ -213,7 +214,11 @@ pub(crate) fn refine(
     params.copy_from_slice(values);
     let camera_from_board = poses
         .iter()
-        .map(|&b| Ok(se3_from_params(problem.parameter_block(b)?)))
+        .map(|&b| {
+            Se3Manifold::pose(problem.parameter_block(b)?).ok_or_else(|| {
+                IntrinsicsError::Refinement("a board pose block is not 7 values".into())
+            })
+        })
         .collect::<Result<Vec<_>, IntrinsicsError>>()?;
     let m: usize = data.iter().map(|(points, _)| 2 * points.len()).sum();
     let n = 8 + 6 * data.len();
