@@ -9,6 +9,12 @@ pub mod sim;
 /// The `nalgebra` the crate's API is written with (poses, points, pixels).
 pub use nalgebra;
 
+/// The ibc library crates whose types the pipeline's API uses (cameras, pose and RANSAC
+/// options, hand-eye pairing, losses, descriptors), at the versions it was built with.
+pub use {
+    ibc_bundle_adjust, ibc_camera_models, ibc_hand_eye, ibc_pnp, ibc_rig_averaging, ibc_vocab_tree,
+};
+
 /// The crate's `Result`, with [`calib::CalibrationError`] by default (the other modules have
 /// their own error types: [`data::io::DataFileError`], [`sim::SimError`],
 /// [`intrinsics::IntrinsicsError`], [`report::OutputError`]).
