@@ -7,6 +7,8 @@ use ibc_pipeline::calib::{
     CalibrationOptions, FrameSetOptions, HandEyeOptions, InitializationOptions,
     LocalizationOptions, RefinementOptions, VocabularyOptions, calibrate, default_pose_options,
 };
+use ibc_pipeline::ibc_hand_eye::Pairing;
+use ibc_pipeline::ibc_pnp::AbsolutePoseOptions;
 use ibc_pipeline::intrinsics::kb_init::KbInitOptions;
 use ibc_pipeline::intrinsics::simulate::BoardSimulationOptions;
 use ibc_pipeline::intrinsics::{IntrinsicModel, IntrinsicsOptions};
@@ -22,7 +24,7 @@ fn every_options_struct_is_one_expression() {
         },
         localization: LocalizationOptions {
             candidates: 12,
-            pose: ibc_pipeline::ibc_pnp::AbsolutePoseOptions {
+            pose: AbsolutePoseOptions {
                 max_error_px: 1.5,
                 ..default_pose_options()
             },
@@ -41,7 +43,7 @@ fn every_options_struct_is_one_expression() {
             ..Default::default()
         },
         hand_eye: HandEyeOptions {
-            pairing: ibc_pipeline::ibc_hand_eye::Pairing::Window { size: 4 },
+            pairing: Pairing::Window { size: 4 },
             ..Default::default()
         },
         ..Default::default()

@@ -157,11 +157,11 @@ mod truth_json;
 
 use std::path::Path;
 
-use ibc_camera_models::io::IoError;
+use ibc_camera_models::io::{IoError, write_atomically};
 use ibc_vocab_tree::Descriptor;
 
 pub use atomic::{
-    STAGING_PREFIX, STALE_STAGING_SECONDS, StagedFiles, remove_staged_outputs, write_atomically,
+    STAGING_PREFIX, STALE_STAGING_SECONDS, StagedFiles, remove_staged_outputs,
 };
 pub(crate) use bytes::unit_quaternion;
 pub use checksum::xxh64;
@@ -230,7 +230,10 @@ pub fn read_map<D: Descriptor>(path: impl AsRef<Path>) -> Result<Map<D>, DataFil
 /// [`DataFileError::Io`] if the file cannot be written.
 pub fn write_map<D: Descriptor>(path: impl AsRef<Path>, map: &Map<D>) -> Result<(), DataFileError> {
     let path = path.as_ref();
-    write_atomically(path, &map_to_bytes(map).map_err(format_error(path))?)
+    Ok(write_atomically(
+        path,
+        &map_to_bytes(map).map_err(format_error(path))?,
+    )?)
 }
 
 /// Reads and validates a rig-log file.
@@ -253,7 +256,10 @@ pub fn write_log<D: Descriptor>(
     log: &RigLog<D>,
 ) -> Result<(), DataFileError> {
     let path = path.as_ref();
-    write_atomically(path, &log_to_bytes(log).map_err(format_error(path))?)
+    Ok(write_atomically(
+        path,
+        &log_to_bytes(log).map_err(format_error(path))?,
+    )?)
 }
 
 /// Reads and validates a ground-truth JSON file.
@@ -281,7 +287,7 @@ pub fn write_truth(path: impl AsRef<Path>, truth: &GroundTruth) -> Result<(), Da
         path: path.to_owned(),
         source,
     })?;
-    write_atomically(path, text.as_bytes())
+    Ok(write_atomically(path, text.as_bytes())?)
 }
 
 /// The descriptor layout of a map or rig-log file, read from its header only, so a caller

@@ -182,7 +182,7 @@ impl CornerSet {
     /// # Errors
     /// [`IntrinsicsError::Output`] if the folder is missing or not writable.
     pub fn write(&self, path: impl AsRef<Path>) -> Result<(), IntrinsicsError> {
-        crate::data::io::write_atomically(path, self.to_json_string().as_bytes())?;
+        ibc_camera_models::io::write_atomically(path.as_ref(), self.to_json_string().as_bytes())?;
         Ok(())
     }
 

@@ -21,7 +21,9 @@
 //! (`0644` under the usual umask `022`), so other accounts (a ROS node) can read them;
 //! temporary-file libraries use `0600`.
 //!
-//! [`write_atomically`] writes one file the same way.
+//! One file alone is written by `ibc_camera_models::io::write_atomically`, the workspace's
+//! atomic writer, on which this module's staging follows the same rules (umask modes, sync,
+//! rename).
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -299,30 +301,6 @@ impl Drop for StagedFiles {
             let _ = std::fs::remove_dir_all(top);
         }
     }
-}
-
-/// Writes `bytes` to `path` atomically: staged in a hidden folder next to it, synced, then
-/// renamed (see the module docs).
-///
-/// # Errors
-/// [`DataFileError::Io`] naming `path` if its folder does not exist, or the write or the
-/// rename fails; nothing is left behind then.
-pub fn write_atomically(path: impl AsRef<Path>, bytes: &[u8]) -> Result<(), DataFileError> {
-    let path = path.as_ref();
-    let folder = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    };
-    if !folder.is_dir() {
-        return Err(io_error(path)(std::io::Error::new(
-            std::io::ErrorKind::NotFound,
-            "the folder does not exist",
-        )));
-    }
-    let mut files = StagedFiles::new(folder)?;
-    files.stage(folder.join(path.file_name().unwrap_or_default()), bytes)?;
-    files.commit()?;
-    Ok(())
 }
 
 #[cfg(test)]
