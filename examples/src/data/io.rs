@@ -160,9 +160,7 @@ use std::path::Path;
 use ibc_camera_models::io::{IoError, write_atomically};
 use ibc_vocab_tree::Descriptor;
 
-pub use atomic::{
-    STAGING_PREFIX, STALE_STAGING_SECONDS, StagedFiles, remove_staged_outputs,
-};
+pub use atomic::{STAGING_PREFIX, STALE_STAGING_SECONDS, StagedFiles, remove_staged_outputs};
 pub(crate) use bytes::unit_quaternion;
 pub use checksum::xxh64;
 pub use descriptor::descriptor_layout;
