@@ -164,3 +164,179 @@ pub enum RigAveragingError {
     )]
     NoFiniteScore,
 }
+
+/// Everything that can go wrong when averaging rotations or translations over a viewing graph
+/// ([`rotation_averaging`](crate::rotation_averaging),
+/// [`rig_rotation_averaging`](crate::rig_rotation_averaging),
+/// [`translation_averaging`](crate::translation_averaging),
+/// [`rig_translation_averaging`](crate::rig_translation_averaging)).
+///
+/// Indices are zero-based positions: an `edge` in the caller's edge slice, a `view` among the
+/// graph's views, a `camera` or `time` of a [`RigLayout`](crate::RigLayout).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum ViewingGraphError {
+    /// The graph has no views.
+    #[error("the viewing graph has no views")]
+    NoViews,
+
+    /// The graph has no edges, so nothing relates any two views.
+    #[error("the viewing graph has no edges: averaging needs relative measurements")]
+    NoEdges,
+
+    /// An edge names a view that does not exist.
+    #[error("edge {edge} names view {view}, but the graph has {views} view(s)")]
+    ViewOutOfRange {
+        /// Position of the edge.
+        edge: usize,
+        /// The view it names.
+        view: usize,
+        /// Number of views.
+        views: usize,
+    },
+
+    /// An edge joins a view to itself.
+    #[error("edge {edge} joins view {view} to itself")]
+    SelfLoop {
+        /// Position of the edge.
+        edge: usize,
+        /// The view.
+        view: usize,
+    },
+
+    /// An edge's relative rotation is not a finite unit quaternion.
+    #[error(
+        "the relative rotation of edge {edge} has norm {norm}: rotations must be finite unit \
+         quaternions"
+    )]
+    NotUnitRotation {
+        /// Position of the edge.
+        edge: usize,
+        /// Its norm (NaN when a component is NaN).
+        norm: f64,
+    },
+
+    /// An edge's direction is not a finite unit vector.
+    #[error("the direction of edge {edge} has norm {norm}: directions must be finite unit vectors")]
+    NotUnitDirection {
+        /// Position of the edge.
+        edge: usize,
+        /// Its norm (NaN when a component is NaN).
+        norm: f64,
+    },
+
+    /// An edge's weight is zero, negative, NaN or infinite.
+    #[error("edge {edge} has weight {weight}: weights must be finite and strictly positive")]
+    InvalidWeight {
+        /// Position of the edge.
+        edge: usize,
+        /// The offending value.
+        weight: f64,
+    },
+
+    /// An option is out of its domain.
+    #[error("invalid option `{option}`: {reason}")]
+    InvalidOption {
+        /// The option's field name.
+        option: &'static str,
+        /// What is wrong with it.
+        reason: &'static str,
+    },
+
+    /// A rig layout's view names a time or camera beyond the layout's counts.
+    #[error(
+        "rig view {view} is (time {time}, camera {camera}) but the layout has {times} time(s) \
+         and {cameras} camera(s)"
+    )]
+    RigViewOutOfRange {
+        /// Position of the view.
+        view: usize,
+        /// Its time.
+        time: usize,
+        /// Its camera.
+        camera: usize,
+        /// Number of times of the layout.
+        times: usize,
+        /// Number of cameras of the layout.
+        cameras: usize,
+    },
+
+    /// Two views of a rig layout are the same (time, camera) image.
+    #[error("rig views {first} and {view} are both (time {time}, camera {camera})")]
+    DuplicateRigView {
+        /// The earlier view.
+        first: usize,
+        /// The later view.
+        view: usize,
+        /// Their time.
+        time: usize,
+        /// Their camera.
+        camera: usize,
+    },
+
+    /// A rig layout has no camera.
+    #[error("the rig layout has no camera")]
+    NoCameras,
+
+    /// No view is left to solve: translation averaging drops views with fewer than two edges
+    /// (repeatedly), since their distance along their one edge is free, and in the rig form the
+    /// views of a time without a rotation.
+    #[error(
+        "no view is left to solve: translation averaging drops views in fewer than two edges \
+         (repeatedly) and views of times without a rotation"
+    )]
+    NoSolvableViews,
+
+    /// The graph does not determine a camera's extrinsic: none of its views is in the largest
+    /// connected component, or its views there are tied to the reference camera by no time.
+    #[error(
+        "camera {camera}'s extrinsic is not determined by the viewing graph: {reason} (add \
+         edges between its views and views of the other cameras, or drop the camera)"
+    )]
+    UndeterminedCamera {
+        /// The camera.
+        camera: usize,
+        /// Why.
+        reason: &'static str,
+    },
+
+    /// The rotations given to translation averaging do not have one entry per time (or per
+    /// view).
+    #[error("{found} rotation(s) given for {expected} time(s) or view(s)")]
+    RotationCountMismatch {
+        /// Number of times (rig form) or views.
+        expected: usize,
+        /// Number of rotations given.
+        found: usize,
+    },
+
+    /// A rotation given to translation averaging is not a finite unit quaternion.
+    #[error("rotation {index} has norm {norm}: rotations must be finite unit quaternions")]
+    InvalidRotation {
+        /// Position of the rotation (a time in the rig form).
+        index: usize,
+        /// Its norm.
+        norm: f64,
+    },
+
+    /// The scale gauge names a view that is not kept (out of range, or dropped as outside the
+    /// largest component), or two equal views.
+    #[error("scale gauge: {reason} (view {view})")]
+    InvalidScaleGauge {
+        /// The view at fault.
+        view: usize,
+        /// What is wrong.
+        reason: &'static str,
+    },
+
+    /// The estimated positions collapse (all equal, or non-finite), so no scale can be fixed:
+    /// the directions do not determine the positions (for example all edges parallel).
+    #[error(
+        "the estimated positions are degenerate ({reason}): the directions do not determine \
+         the positions"
+    )]
+    DegeneratePositions {
+        /// What was found.
+        reason: &'static str,
+    },
+}
