@@ -61,6 +61,8 @@ pub struct BalBlocks {
 struct Tokens<'a> {
     lines: core::iter::Enumerate<core::str::Lines<'a>>,
     current: Option<(usize, core::str::SplitWhitespace<'a>)>,
+    /// One-based number of the last line read (at the end of the text, its last line).
+    last_line: usize,
 }
 
 impl<'a> Tokens<'a> {
@@ -68,7 +70,14 @@ impl<'a> Tokens<'a> {
         Self {
             lines: text.lines().enumerate(),
             current: None,
+            last_line: 0,
         }
+    }
+
+    /// The line to report for a value missing at the end of the text: its last line (1 for
+    /// an empty text).
+    fn end_line(&self) -> usize {
+        self.last_line.max(1)
     }
 
     fn next_token(&mut self) -> Option<(usize, &'a str)> {
@@ -79,15 +88,18 @@ impl<'a> Tokens<'a> {
                 return Some((*line, w));
             }
             let (i, l) = self.lines.next()?;
+            self.last_line = i + 1;
             self.current = Some((i + 1, l.split_whitespace()));
         }
     }
 
     fn parse<T: core::str::FromStr>(&mut self, expected: &'static str) -> Result<(usize, T)> {
-        let (line, token) = self.next_token().ok_or(BundleAdjustError::BalParse {
-            line: 0,
-            source: BalSyntaxError::UnexpectedEnd { expected },
-        })?;
+        let Some((line, token)) = self.next_token() else {
+            return Err(BundleAdjustError::BalParse {
+                line: self.end_line(),
+                source: BalSyntaxError::UnexpectedEnd { expected },
+            });
+        };
         token
             .parse()
             .map(|v| (line, v))

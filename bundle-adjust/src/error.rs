@@ -111,12 +111,46 @@ pub enum BundleAdjustError {
         /// How many of its observations were excluded; 0 when it had none.
         excluded: usize,
     },
+    /// A point of a rig bundle adjustment has a single observation that can be evaluated at
+    /// the initial estimate: two are needed to determine it.
+    #[error(
+        "point {point} has a single usable observation ({excluded} excluded): two are needed to determine it"
+    )]
+    PointSeenOnce {
+        /// Index of the point.
+        point: usize,
+        /// How many of its observations were excluded (they cannot be evaluated at the
+        /// initial estimate).
+        excluded: usize,
+    },
     /// A parameter block id does not belong to this problem.
     #[error("parameter block {block} does not exist: the problem has {count} parameter blocks")]
     UnknownParameterBlock {
         /// The id that was passed.
         block: usize,
         /// Number of parameter blocks in the problem.
+        count: usize,
+    },
+    /// [`crate::Problem::set_constant_subset`] was given an index outside the block.
+    #[error(
+        "parameter block {block} has {tangent} tangent coordinates: index {index} cannot be held"
+    )]
+    SubsetIndexOutOfRange {
+        /// Id of the parameter block.
+        block: usize,
+        /// The offending index.
+        index: usize,
+        /// The block's tangent size (its size for a vector block).
+        tangent: usize,
+    },
+    /// A residual block id does not belong to this problem, or its block was removed.
+    #[error(
+        "residual block {residual} does not exist or was removed: the problem has {count} residual blocks"
+    )]
+    UnknownResidualBlock {
+        /// The id that was passed.
+        residual: usize,
+        /// Number of residual blocks in the problem (not counting removed ones).
         count: usize,
     },
     /// A parameter block was created with no values.
@@ -213,11 +247,33 @@ pub enum BundleAdjustError {
         /// Second eliminated block.
         second: usize,
     },
-    /// The information matrix is singular, so the covariance is undefined.
+    /// The information of an eliminated block (a point seen from one image, say) is
+    /// singular, so the covariance is undefined. (A reduced information singular up to
+    /// rounding is a [`BundleAdjustError::CovarianceRankDeficient`].)
     #[error(
         "the covariance is undefined: the information matrix is singular (unfixed gauge or unobservable parameters)"
     )]
     SingularInformation,
+    /// The information matrix is singular up to rounding, so its inverse would be
+    /// meaningless: its reciprocal condition number (smallest over largest eigenvalue of the
+    /// reduced information equilibrated to a unit diagonal) is below the threshold
+    /// [`crate::SolverOptions::min_reciprocal_condition_number`]. Typically a gauge freedom
+    /// left open (the scale of a bundle adjustment with one fixed image) or an unobservable
+    /// parameter; see [`crate::Problem::covariance`].
+    #[error(
+        "the covariance is undefined: the information matrix is singular up to rounding (reciprocal condition number {reciprocal_condition_number:.3e} < {min_reciprocal_condition_number:.1e}; parameter block {block} has the largest share of the undetermined direction: an unfixed gauge or an unobservable parameter)"
+    )]
+    CovarianceRankDeficient {
+        /// The estimated reciprocal condition number λmin/λmax: at rounding level (about
+        /// 1e-16, possibly slightly negative) for a matrix singular in exact arithmetic; 0 when
+        /// the matrix has a coordinate without any information.
+        reciprocal_condition_number: f64,
+        /// The threshold it fell below.
+        min_reciprocal_condition_number: f64,
+        /// The parameter block with the largest component of the eigenvector of the smallest
+        /// eigenvalue.
+        block: usize,
+    },
     /// Covariance was requested for a constant or eliminated parameter block.
     #[error(
         "covariance is only available for free, non-eliminated parameter blocks; block {block} is not"
@@ -255,7 +311,8 @@ pub enum BundleAdjustError {
     /// The text of a BAL file is malformed.
     #[error("BAL file, line {line}: {source}")]
     BalParse {
-        /// One-based line number (0 when the file ends too early).
+        /// One-based line number; for a file that ends too early
+        /// ([`BalSyntaxError::UnexpectedEnd`]), its last line (1 for an empty file).
         line: usize,
         /// What is wrong there.
         #[source]

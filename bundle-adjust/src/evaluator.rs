@@ -155,7 +155,9 @@ impl<'a> Evaluator<'a> {
     }
 
     /// Corrected residuals and scaled Jacobian blocks at `x`, with their gradient and
-    /// column norms; returns the cost.
+    /// column norms; returns the cost. Without a `scale`, the columns of coordinates held by
+    /// [`Problem::set_constant_subset`] are still zeroed (the program's column mask); a given
+    /// `scale` must hold zeros there itself.
     pub(crate) fn jacobian(
         &self,
         x: &[f64],
@@ -166,6 +168,7 @@ impl<'a> Evaluator<'a> {
         exec: &Executor,
     ) -> Result<f64, EvalError> {
         let prog = self.program;
+        let scale = scale.or((!prog.col_mask.is_empty()).then_some(prog.col_mask.as_slice()));
         let n_e = prog.n_e;
         let next = |t: &core::ops::Range<usize>| prog.res.get(t.end);
         let res_ends: Vec<usize> = self

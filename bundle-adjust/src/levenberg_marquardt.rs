@@ -21,7 +21,7 @@ use crate::options::SolverOptions;
 use crate::parallel::Executor;
 use crate::problem::Problem;
 use crate::program::Program;
-use crate::summary::{IterationSummary, StageTimes, Summary, Termination};
+use crate::summary::{IterationControl, IterationSummary, StageTimes, Summary, Termination};
 
 fn initial_error(e: EvalError) -> BundleAdjustError {
     match e {
@@ -38,6 +38,10 @@ fn gradient_norms(g_scaled: &[f64], scale: &[f64]) -> (f64, f64) {
     let mut max = 0.0f64;
     let mut sum = 0.0;
     for (g, s) in g_scaled.iter().zip(scale) {
+        // A held coordinate (scale 0) has no gradient.
+        if *s == 0.0 {
+            continue;
+        }
         let v = g / s;
         max = max.max(v.abs());
         sum += v * v;
@@ -70,13 +74,21 @@ fn plus(problem: &Problem, program: &Program, x: &[f64], step: &[f64], candidate
                 for ((o, xv), dv) in out.iter_mut().zip(xs).zip(d) {
                     *o = xv + dv;
                 }
+                // Held entries stay bit-identical (their step is zero, but 0 + −0 is 0).
+                for &h in &block.held {
+                    out[h] = xs[h];
+                }
             }
         }
     }
 }
 
 /// Minimizes the problem's cost; see the module documentation.
-pub(crate) fn solve(problem: &mut Problem, options: &SolverOptions) -> Result<Summary> {
+pub(crate) fn solve(
+    problem: &mut Problem,
+    options: &SolverOptions,
+    callback: &mut dyn FnMut(&IterationSummary) -> IterationControl,
+) -> Result<Summary> {
     let start = Instant::now();
     options.validate()?;
     problem.check_values()?;
@@ -94,7 +106,12 @@ pub(crate) fn solve(problem: &mut Problem, options: &SolverOptions) -> Result<Su
     let n = program.n_tangent();
     let mut res = vec![0.0; program.n_res_values];
     let mut jac = vec![0.0; program.n_jac_values];
-    let mut scale = vec![1.0; n];
+    // Held coordinates have scale 0: their Jacobian columns and steps are zero.
+    let mut scale = if program.col_mask.is_empty() {
+        vec![1.0; n]
+    } else {
+        program.col_mask.clone()
+    };
     let fixed_cost = evaluator.fixed_cost(&x).map_err(initial_error)?;
     let mut g = vec![0.0; n];
     let mut column_norms = vec![0.0; n];
@@ -113,7 +130,7 @@ pub(crate) fn solve(problem: &mut Problem, options: &SolverOptions) -> Result<Su
             .zip(column_norms.iter_mut())
             .zip(g.iter_mut())
         {
-            *s = 1.0 / (1.0 + c.sqrt());
+            *s *= 1.0 / (1.0 + c.sqrt());
             *c *= *s * *s;
             *gi *= *s;
         }
@@ -147,8 +164,11 @@ pub(crate) fn solve(problem: &mut Problem, options: &SolverOptions) -> Result<Su
     let mut accepted = 0usize;
     let mut linear_solves = 0usize;
 
+    let stop_at_start = callback(&log[0]) == IterationControl::Stop;
     let termination = if n == 0 {
         Termination::NoFreeParameters
+    } else if stop_at_start {
+        Termination::UserStop
     } else if options.max_iterations == 0 {
         Termination::MaxIterations
     } else if gmax <= options.gradient_tolerance {
@@ -280,9 +300,16 @@ pub(crate) fn solve(problem: &mut Problem, options: &SolverOptions) -> Result<Su
                 eprintln!("{}", entry.log_line());
             }
             let successful = entry.step_is_successful;
+            let control = callback(&entry);
             log.push(entry);
+            if control == IterationControl::Stop {
+                break Termination::UserStop;
+            }
             if iteration >= options.max_iterations {
                 break Termination::MaxIterations;
+            }
+            if entry.cumulative_time >= options.max_solver_time_in_seconds {
+                break Termination::MaxSolverTime;
             }
             if successful && gmax <= options.gradient_tolerance {
                 break Termination::GradientTolerance;
@@ -307,7 +334,7 @@ pub(crate) fn solve(problem: &mut Problem, options: &SolverOptions) -> Result<Su
         num_threads: exec.threads(),
         num_eliminated: program.n_e,
         num_reduced: program.n_f,
-        num_residual_blocks: problem.residuals.len(),
+        num_residual_blocks: problem.live_residuals,
         times,
         log,
     })

@@ -20,6 +20,8 @@ mod problem;
 mod program;
 mod reduced;
 pub mod rig;
+mod rig_ba_cost;
+pub mod rig_bundle_adjustment;
 mod schur;
 mod simd;
 mod sparse_solver;
@@ -38,7 +40,8 @@ pub use cost::{CostFunction, Jacobians};
 pub use covariance::Covariance;
 pub use error::{BalFileError, BalSyntaxError, BundleAdjustError, Result};
 pub use full_ba::{
-    BaObservation, BundleAdjustment, BundleAdjustmentOptions, BundleAdjustmentResult,
+    BaObservation, BaProblem, BundleAdjustment, BundleAdjustmentOptions, BundleAdjustmentResult,
+    Gauge, SCALE_PRIOR_WEIGHT,
 };
 pub use manifold::{Manifold, Se3Manifold, UnitQuaternionManifold};
 pub use options::{AUTO_DENSE_MAX_DIM, AUTO_SPARSE_MAX_DIM, LinearSolverType, SolverOptions};
@@ -46,7 +49,11 @@ pub use problem::{ParameterBlockId, Problem, ResidualBlockId};
 pub use rig::{
     RigObservation, RigProblem, RigRefinement, RigRefinementOptions, RigRefinementResult,
 };
-pub use summary::{IterationSummary, StageTimes, Summary, Termination};
+pub use rig_bundle_adjustment::{
+    ParameterObservability, RigBaObservation, RigBundleAdjustment, RigBundleAdjustmentOptions,
+    RigBundleAdjustmentResult, ScaleGauge,
+};
+pub use summary::{IterationControl, IterationSummary, StageTimes, Summary, Termination};
 
 /// The last field of every options struct of this crate (`non_exhaustive`), set by the
 /// struct's `Default`.

@@ -18,7 +18,7 @@
 //! internal; for the cross-product matrix `[v]×` of a Jacobian use nalgebra's
 //! `Vector3::cross_matrix`, and for Exp(φ) `UnitQuaternion::from_scaled_axis`.
 
-use nalgebra::{Isometry3, Matrix3, Quaternion, Translation3, UnitQuaternion, Vector3};
+use nalgebra::{Isometry3, Matrix3, Matrix3x2, Quaternion, Translation3, UnitQuaternion, Vector3};
 
 /// A manifold on which a parameter block lives.
 pub trait Manifold: Send + Sync + core::fmt::Debug {
@@ -171,6 +171,22 @@ pub(crate) fn se3_from_unit_params(params: &[f64]) -> Isometry3<f64> {
 pub(crate) fn quaternion_from_params(params: &[f64]) -> UnitQuaternion<f64> {
     let q = Quaternion::new(params[0], params[1], params[2], params[3]);
     UnitQuaternion::try_new(q, 0.0).unwrap_or_else(UnitQuaternion::identity)
+}
+
+/// An orthonormal basis (3 × 2) of the plane orthogonal to the unit vector `u`, a
+/// deterministic function of `u` (a manifold that moves a point on a sphere and the cost
+/// functions that differentiate through it must agree on it): the sphere's tangent basis.
+#[inline]
+#[must_use]
+pub(crate) fn sphere_tangent_basis(u: &Vector3<f64>) -> Matrix3x2<f64> {
+    let a = if u.x.abs() < 0.9 {
+        Vector3::x()
+    } else {
+        Vector3::y()
+    };
+    let b1 = a.cross(u).normalize();
+    let b2 = u.cross(&b1);
+    Matrix3x2::from_columns(&[b1, b2])
 }
 
 /// Exp of so(3): the rotation by angle |φ| about φ/|φ|.

@@ -69,8 +69,16 @@ impl LinearSolverType {
 /// ```
 #[derive(Debug, Clone, PartialEq)]
 pub struct SolverOptions {
-    /// Maximum number of iterations (default 50, Ceres's).
+    /// Maximum number of iterations (default 50, Ceres's): the iteration budget. A solve that
+    /// reaches it ends with [`crate::Termination::MaxIterations`] after exactly this many
+    /// iterations (0 evaluates the start and stops).
     pub max_iterations: usize,
+    /// Time budget in seconds (default 1e9, Ceres's `max_solver_time_in_seconds`): after an
+    /// iteration that ends past it (counted from the start of the solve, preprocessing
+    /// included), the solve stops with [`crate::Termination::MaxSolverTime`], keeping the last
+    /// accepted point. An iteration is never interrupted, so a solve may overrun the budget
+    /// by one iteration. `f64::INFINITY` means no budget.
+    pub max_solver_time_in_seconds: f64,
     /// Stop when |Δcost| ≤ `function_tolerance` · cost (default 1e-6, Ceres's).
     pub function_tolerance: f64,
     /// Stop when the max-norm of the gradient is ≤ this (default 1e-10, Ceres's).
@@ -116,6 +124,13 @@ pub struct SolverOptions {
     /// (a maximal independent set of the blocks, fewest residuals first, as Ceres does;
     /// default true).
     pub automatic_elimination: bool,
+    /// Smallest reciprocal condition number of the information matrix for which
+    /// [`crate::Problem::covariance`] returns a covariance (default 1e-14, the value of Ceres's
+    /// `Covariance::Options::min_reciprocal_condition_number`); below it the covariance is a
+    /// [`BundleAdjustError::CovarianceRankDeficient`]. Measured on the reduced information
+    /// equilibrated to a unit diagonal, so the units of the parameters do not matter. Not
+    /// used by the solve itself.
+    pub min_reciprocal_condition_number: f64,
     /// Print a Ceres-style line per iteration to standard error (default false).
     pub log_to_stderr: bool,
     /// Keeps the struct open to new fields: write it with `..Default::default()`.
@@ -127,6 +142,7 @@ impl Default for SolverOptions {
     fn default() -> Self {
         Self {
             max_iterations: 50,
+            max_solver_time_in_seconds: 1e9,
             function_tolerance: 1e-6,
             gradient_tolerance: 1e-10,
             parameter_tolerance: 1e-8,
@@ -144,6 +160,7 @@ impl Default for SolverOptions {
             min_linear_solver_iterations: 0,
             num_threads: 1,
             automatic_elimination: true,
+            min_reciprocal_condition_number: 1e-14,
             log_to_stderr: false,
             non_exhaustive: NonExhaustive(()),
         }
@@ -176,6 +193,15 @@ impl SolverOptions {
                 })
             }
         };
+        if self.max_solver_time_in_seconds.is_nan() || self.max_solver_time_in_seconds <= 0.0 {
+            return Err(BundleAdjustError::InvalidOption {
+                name: "max_solver_time_in_seconds",
+                reason: format!(
+                    "{} is not a positive number",
+                    self.max_solver_time_in_seconds
+                ),
+            });
+        }
         non_negative("function_tolerance", self.function_tolerance)?;
         non_negative("gradient_tolerance", self.gradient_tolerance)?;
         non_negative("parameter_tolerance", self.parameter_tolerance)?;
@@ -189,6 +215,12 @@ impl SolverOptions {
         positive("min_lm_diagonal", self.min_lm_diagonal)?;
         positive("max_lm_diagonal", self.max_lm_diagonal)?;
         positive("eta", self.eta)?;
+        if !(0.0..1.0).contains(&self.min_reciprocal_condition_number) {
+            return Err(BundleAdjustError::InvalidOption {
+                name: "min_reciprocal_condition_number",
+                reason: format!("{} is not in [0, 1)", self.min_reciprocal_condition_number),
+            });
+        }
         if self.min_lm_diagonal > self.max_lm_diagonal {
             return Err(BundleAdjustError::InvalidOption {
                 name: "min_lm_diagonal",

@@ -11,7 +11,7 @@ use crate::cost::CostFunction;
 use crate::error::{BundleAdjustError, Result};
 use crate::manifold::Manifold;
 use crate::options::SolverOptions;
-use crate::summary::Summary;
+use crate::summary::{IterationControl, IterationSummary, Summary};
 
 /// Identifies a parameter block of one [`Problem`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -45,13 +45,41 @@ pub(crate) struct ParameterBlock {
     pub manifold: Option<Arc<dyn Manifold>>,
     pub constant: bool,
     pub eliminate: bool,
+    /// Tangent coordinates held at their values ([`Problem::set_constant_subset`]), ascending
+    /// and distinct.
+    pub held: Vec<usize>,
+}
+
+impl ParameterBlock {
+    /// Whether nothing of the block may move: constant, or every tangent coordinate held.
+    pub(crate) fn is_fixed(&self) -> bool {
+        self.constant || self.held.len() == self.tangent
+    }
 }
 
 pub(crate) struct ResidualBlock {
     pub cost: Box<dyn CostFunction>,
     pub loss: RobustLoss,
+    /// The arguments; empty once removed.
     pub blocks: Vec<usize>,
     pub rows: usize,
+    /// Removed by [`Problem::remove_residual_block`]: left out of every solve.
+    pub removed: bool,
+}
+
+/// What a removed residual block holds instead of its cost function (no allocation).
+struct RemovedCost;
+
+impl CostFunction for RemovedCost {
+    fn num_residuals(&self) -> usize {
+        0
+    }
+    fn parameter_block_sizes(&self) -> &[usize] {
+        &[]
+    }
+    fn evaluate(&self, _: &[&[f64]], _: &mut [f64], _: Option<&mut crate::Jacobians<'_>>) -> bool {
+        false
+    }
 }
 
 /// A robust non-linear least-squares problem, min ½ Σᵢ ρᵢ(|rᵢ(x)|²).
@@ -60,13 +88,15 @@ pub struct Problem {
     pub(crate) values: Vec<f64>,
     pub(crate) blocks: Vec<ParameterBlock>,
     pub(crate) residuals: Vec<ResidualBlock>,
+    /// Number of residual blocks not removed.
+    pub(crate) live_residuals: usize,
 }
 
 impl core::fmt::Debug for Problem {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         f.debug_struct("Problem")
             .field("parameter_blocks", &self.blocks.len())
-            .field("residual_blocks", &self.residuals.len())
+            .field("residual_blocks", &self.live_residuals)
             .finish()
     }
 }
@@ -128,6 +158,7 @@ impl Problem {
             manifold,
             constant: false,
             eliminate: false,
+            held: Vec::new(),
         });
         self.values.extend_from_slice(values);
         Ok(ParameterBlockId(id))
@@ -140,6 +171,63 @@ impl Problem {
     pub fn set_constant(&mut self, block: ParameterBlockId, constant: bool) -> Result<()> {
         self.block_mut(block)?.constant = constant;
         Ok(())
+    }
+
+    /// Holds the entries `indices` of a block at their current values while the others stay
+    /// free (Ceres's `SubsetManifold`); an empty slice frees them all again. Replaces any
+    /// subset set before; repeated indices count once. Holding every entry is the same as
+    /// [`Problem::set_constant`]. Useful to keep some intrinsics of a camera (a principal
+    /// point, the distortion) while refining the others.
+    ///
+    /// For a vector block the indices are entries of the block, which stay bit-identical
+    /// through a solve. For a block on a [`Manifold`] they are coordinates of the tangent
+    /// step δ: the solver never steps along them (for [`crate::Se3Manifold`], δ = `[ρ, φ]` of
+    /// the right perturbation T · Exp(δ), so holding indices 3..6 keeps the rotation and
+    /// holding 0..3 forbids translation steps in the block's own frame). A held coordinate
+    /// has zero variance in [`Problem::covariance`].
+    ///
+    /// ```
+    /// use ibc_bundle_adjust::Problem;
+    ///
+    /// let mut problem = Problem::new();
+    /// let intrinsics = problem.add_parameter_block(&[460.0, 458.0, 370.0, 245.0])?;
+    /// // Hold the principal point, refine the focal lengths.
+    /// problem.set_constant_subset(intrinsics, &[2, 3])?;
+    /// assert_eq!(problem.constant_subset(intrinsics)?, &[2, 3]);
+    /// # Ok::<(), ibc_bundle_adjust::BundleAdjustError>(())
+    /// ```
+    ///
+    /// # Errors
+    /// [`BundleAdjustError::UnknownParameterBlock`] for an id of another problem,
+    /// [`BundleAdjustError::SubsetIndexOutOfRange`] for an index at or past the block's
+    /// tangent size (its size for a vector block).
+    pub fn set_constant_subset(
+        &mut self,
+        block: ParameterBlockId,
+        indices: &[usize],
+    ) -> Result<()> {
+        let b = self.block_mut(block)?;
+        if let Some(&index) = indices.iter().find(|&&i| i >= b.tangent) {
+            return Err(BundleAdjustError::SubsetIndexOutOfRange {
+                block: block.0,
+                index,
+                tangent: b.tangent,
+            });
+        }
+        let mut held = indices.to_vec();
+        held.sort_unstable();
+        held.dedup();
+        b.held = held;
+        Ok(())
+    }
+
+    /// The entries (tangent coordinates for a manifold block) of a block held by
+    /// [`Problem::set_constant_subset`], ascending; empty when none is held.
+    ///
+    /// # Errors
+    /// [`BundleAdjustError::UnknownParameterBlock`] for an id of another problem.
+    pub fn constant_subset(&self, block: ParameterBlockId) -> Result<&[usize]> {
+        Ok(&self.block(block)?.held)
     }
 
     /// Puts a block in (or takes it out of) the group eliminated by the Schur complement.
@@ -223,8 +311,70 @@ impl Problem {
             loss,
             blocks: blocks.iter().map(|b| b.0).collect(),
             rows,
+            removed: false,
         });
+        self.live_residuals += 1;
         Ok(ResidualBlockId(id))
+    }
+
+    /// Removes a residual block: later solves (and [`Problem::covariance`]) leave it out, as
+    /// if it had never been added; its cost function is dropped. The ids of the other
+    /// residual blocks stay valid and new ones are never reused, so an online user can drop
+    /// old observations between solves. A parameter block left without residual blocks is
+    /// simply not optimized (it keeps its values).
+    ///
+    /// ```
+    /// use ibc_bundle_adjust::{CostFunction, Jacobians, Problem, RobustLoss};
+    /// use ibc_bundle_adjust::nalgebra::Matrix1;
+    ///
+    /// /// r = x − target.
+    /// struct Prior(f64);
+    /// impl CostFunction for Prior {
+    ///     fn num_residuals(&self) -> usize { 1 }
+    ///     fn parameter_block_sizes(&self) -> &[usize] { &[1] }
+    ///     fn evaluate(&self, p: &[&[f64]], r: &mut [f64], j: Option<&mut Jacobians<'_>>) -> bool {
+    ///         r[0] = p[0][0] - self.0;
+    ///         if let Some(j) = j { j.set(0, &Matrix1::new(1.0)); }
+    ///         true
+    ///     }
+    /// }
+    ///
+    /// let mut problem = Problem::new();
+    /// let x = problem.add_parameter_block(&[0.0])?;
+    /// let old = problem.add_residual_block(Prior(1.0), RobustLoss::Trivial, &[x])?;
+    /// problem.add_residual_block(Prior(3.0), RobustLoss::Trivial, &[x])?;
+    /// problem.remove_residual_block(old)?;
+    /// assert_eq!(problem.num_residual_blocks(), 1);
+    /// problem.solve(&Default::default())?;
+    /// // Only the second prior is left: x goes to 3 (to the default tolerances).
+    /// assert!((problem.parameter_block(x)?[0] - 3.0).abs() < 1e-3);
+    /// # Ok::<(), ibc_bundle_adjust::BundleAdjustError>(())
+    /// ```
+    ///
+    /// # Errors
+    /// [`BundleAdjustError::UnknownResidualBlock`] for an id of another problem or one
+    /// already removed.
+    pub fn remove_residual_block(&mut self, residual: ResidualBlockId) -> Result<()> {
+        let count = self.live_residuals;
+        match self.residuals.get_mut(residual.0) {
+            Some(r) if !r.removed => {
+                r.removed = true;
+                r.blocks = Vec::new();
+                r.cost = Box::new(RemovedCost);
+                self.live_residuals -= 1;
+                Ok(())
+            }
+            _ => Err(BundleAdjustError::UnknownResidualBlock {
+                residual: residual.0,
+                count,
+            }),
+        }
+    }
+
+    /// Whether a residual block id names a block of this problem that was not removed.
+    #[must_use]
+    pub fn has_residual_block(&self, residual: ResidualBlockId) -> bool {
+        self.residuals.get(residual.0).is_some_and(|r| !r.removed)
     }
 
     /// The current values of a block.
@@ -268,7 +418,53 @@ impl Problem {
     /// parameters. Trouble during the iterations ends the solve with a
     /// [`crate::Termination`] instead.
     pub fn solve(&mut self, options: &SolverOptions) -> Result<Summary> {
-        crate::levenberg_marquardt::solve(self, options)
+        crate::levenberg_marquardt::solve(self, options, &mut |_| IterationControl::Continue)
+    }
+
+    /// [`Problem::solve`], calling `callback` with every iteration's summary as it is logged
+    /// (iteration 0, the evaluation of the start, first; rejected steps too). Returning
+    /// [`IterationControl::Stop`] ends the solve with [`crate::Termination::UserStop`] at the
+    /// last accepted point: a progress display, a cancel button or a custom stopping rule.
+    /// With [`SolverOptions::max_iterations`] and
+    /// [`SolverOptions::max_solver_time_in_seconds`] this bounds the work of an online solve.
+    ///
+    /// ```
+    /// use ibc_bundle_adjust::{CostFunction, IterationControl, Jacobians, Problem, RobustLoss,
+    ///     SolverOptions, Termination};
+    /// use ibc_bundle_adjust::nalgebra::Matrix1;
+    ///
+    /// /// r = exp(x) − 2, slow enough to take several iterations from x = 3.
+    /// struct Exp;
+    /// impl CostFunction for Exp {
+    ///     fn num_residuals(&self) -> usize { 1 }
+    ///     fn parameter_block_sizes(&self) -> &[usize] { &[1] }
+    ///     fn evaluate(&self, p: &[&[f64]], r: &mut [f64], j: Option<&mut Jacobians<'_>>) -> bool {
+    ///         r[0] = p[0][0].exp() - 2.0;
+    ///         if let Some(j) = j { j.set(0, &Matrix1::new(p[0][0].exp())); }
+    ///         true
+    ///     }
+    /// }
+    /// let mut problem = Problem::new();
+    /// let x = problem.add_parameter_block(&[3.0])?;
+    /// problem.add_residual_block(Exp, RobustLoss::Trivial, &[x])?;
+    /// let mut seen = Vec::new();
+    /// let summary = problem.solve_with_callback(&SolverOptions::default(), |it| {
+    ///     seen.push(it.iteration);
+    ///     if it.iteration == 2 { IterationControl::Stop } else { IterationControl::Continue }
+    /// })?;
+    /// assert_eq!(summary.termination, Termination::UserStop);
+    /// assert_eq!(seen, [0, 1, 2]);
+    /// # Ok::<(), ibc_bundle_adjust::BundleAdjustError>(())
+    /// ```
+    ///
+    /// # Errors
+    /// As [`Problem::solve`].
+    pub fn solve_with_callback(
+        &mut self,
+        options: &SolverOptions,
+        mut callback: impl FnMut(&IterationSummary) -> IterationControl,
+    ) -> Result<Summary> {
+        crate::levenberg_marquardt::solve(self, options, &mut callback)
     }
 
     /// Number of parameter blocks.
@@ -277,10 +473,10 @@ impl Problem {
         self.blocks.len()
     }
 
-    /// Number of residual blocks.
+    /// Number of residual blocks (not counting removed ones).
     #[must_use]
     pub fn num_residual_blocks(&self) -> usize {
-        self.residuals.len()
+        self.live_residuals
     }
 
     /// Tangent size of a block (its stored size for a vector block).

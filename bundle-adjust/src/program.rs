@@ -103,12 +103,16 @@ pub(crate) struct Program {
     /// Residual blocks whose arguments are all constant.
     pub fixed_residuals: Vec<usize>,
     pub shape: ShapeKind,
+    /// Per tangent column, 1 for a free coordinate and 0 for one held by
+    /// [`Problem::set_constant_subset`]; empty when no coordinate is held. The evaluator
+    /// multiplies the Jacobian columns by it, so held coordinates never move.
+    pub col_mask: Vec<f64>,
 }
 
 impl Program {
     /// Compiles `problem`. `automatic` chooses the eliminated group when none is marked.
     pub(crate) fn new(problem: &Problem, automatic: bool) -> Result<Self> {
-        if problem.residuals.is_empty() {
+        if problem.live_residuals == 0 {
             return Err(BundleAdjustError::EmptyProblem);
         }
         let nb = problem.blocks.len();
@@ -119,7 +123,7 @@ impl Program {
             }
         }
         let active: Vec<bool> = (0..nb)
-            .map(|b| used[b] && !problem.blocks[b].constant)
+            .map(|b| used[b] && !problem.blocks[b].is_fixed())
             .collect();
         let eliminate = elimination_group(problem, &active, automatic)?;
 
@@ -153,6 +157,9 @@ impl Program {
         let mut chunk_members: Vec<Vec<usize>> = vec![Vec::new(); e_list.len()];
         let mut free = Vec::new();
         for (ri, r) in problem.residuals.iter().enumerate() {
+            if r.removed {
+                continue;
+            }
             if r.blocks.iter().all(|&b| !active[b]) {
                 fixed_residuals.push(ri);
             } else if let Some(&b) = r.blocks.iter().find(|&&b| eliminate[b]) {
@@ -182,7 +189,22 @@ impl Program {
             block_col,
             fixed_residuals,
             shape: ShapeKind::Dynamic,
+            col_mask: Vec::new(),
         };
+        if program
+            .active_blocks
+            .iter()
+            .any(|&b| !problem.blocks[b].held.is_empty())
+        {
+            let mut mask = vec![1.0; n_e + n_f];
+            for &b in &program.active_blocks {
+                let col = program.block_col[b] as usize;
+                for &h in &problem.blocks[b].held {
+                    mask[col + h] = 0.0;
+                }
+            }
+            program.col_mask = mask;
+        }
         let mut local: Vec<(u32, u32)> = Vec::new();
         for (ei, members) in chunk_members.iter().enumerate() {
             let b = e_list[ei];

@@ -24,7 +24,7 @@
 use std::sync::Arc;
 
 use ibc_camera_models::{Camera, CameraModel, Rig};
-use nalgebra::{Isometry3, Matrix3, Matrix6, SMatrix, Vector2, Vector3};
+use nalgebra::{Isometry3, Matrix2x3, Matrix3, Matrix6, SMatrix, Vector2, Vector3};
 
 use crate::corrector::validate_loss;
 use crate::cost::{CostFunction, EvaluationProbe, Jacobians};
@@ -220,25 +220,50 @@ impl CostFunction for RigReprojection {
             .into_inner()
             .transpose();
         if jac.wants(0) {
-            let a = d_pixel * camera_from_rig;
-            let mut j = SMatrix::<f64, 2, 6>::zeros();
-            j.fixed_view_mut::<2, 3>(0, 0).copy_from(&(-a));
-            j.fixed_view_mut::<2, 3>(0, 3)
-                .copy_from(&(a * skew(&p_rig)));
-            jac.set(0, &j);
+            jac.set(
+                0,
+                &world_from_rig_jacobian(&(d_pixel * camera_from_rig), &p_rig),
+            );
         }
         if jac.wants(1) {
-            let mut j = SMatrix::<f64, 2, 6>::zeros();
-            j.fixed_view_mut::<2, 3>(0, 0).copy_from(&(-d_pixel));
-            j.fixed_view_mut::<2, 3>(0, 3)
-                .copy_from(&(d_pixel * skew(&p_cam)));
-            jac.set(1, &j);
+            jac.set(1, &rig_from_camera_jacobian(&d_pixel, &p_cam));
         }
         true
     }
 }
 
-fn check_pose(index: usize, pose: &Isometry3<f64>, what: &'static str) -> Result<()> {
+/// ∂pixel/∂δ of a right perturbation δ = `[ρ, φ]` of `world_from_rig`, for the projection of
+/// `camera_from_rig · p_rig` with `d_pixel_d_rig` = ∂pixel/∂p_cam · R_camera_from_rig and
+/// `p_rig` the point in the rig frame: `[−A, A [p_rig]×]` (shared with the rig bundle
+/// adjustment).
+#[inline]
+pub(crate) fn world_from_rig_jacobian(
+    d_pixel_d_rig: &Matrix2x3<f64>,
+    p_rig: &Vector3<f64>,
+) -> SMatrix<f64, 2, 6> {
+    let mut j = SMatrix::<f64, 2, 6>::zeros();
+    j.fixed_view_mut::<2, 3>(0, 0).copy_from(&(-d_pixel_d_rig));
+    j.fixed_view_mut::<2, 3>(0, 3)
+        .copy_from(&(d_pixel_d_rig * skew(p_rig)));
+    j
+}
+
+/// ∂pixel/∂δ of a right perturbation δ = `[ρ, φ]` of `rig_from_camera`, with `d_pixel` =
+/// ∂pixel/∂p_cam and `p_cam` the point in the camera frame: `[−D, D [p_cam]×]` (shared with
+/// the rig bundle adjustment).
+#[inline]
+pub(crate) fn rig_from_camera_jacobian(
+    d_pixel: &Matrix2x3<f64>,
+    p_cam: &Vector3<f64>,
+) -> SMatrix<f64, 2, 6> {
+    let mut j = SMatrix::<f64, 2, 6>::zeros();
+    j.fixed_view_mut::<2, 3>(0, 0).copy_from(&(-d_pixel));
+    j.fixed_view_mut::<2, 3>(0, 3)
+        .copy_from(&(d_pixel * skew(p_cam)));
+    j
+}
+
+pub(crate) fn check_pose(index: usize, pose: &Isometry3<f64>, what: &'static str) -> Result<()> {
     if se3_to_params(pose).iter().all(|v| v.is_finite()) {
         Ok(())
     } else {

@@ -23,6 +23,21 @@ pub enum Termination {
     EvaluationFailed,
     /// Nothing to optimize: every parameter block is constant.
     NoFreeParameters,
+    /// The time budget [`crate::SolverOptions::max_solver_time_in_seconds`] ran out (Ceres:
+    /// `NO_CONVERGENCE`); the parameters are those of the last accepted step.
+    MaxSolverTime,
+    /// The iteration callback of [`crate::Problem::solve_with_callback`] returned
+    /// [`IterationControl::Stop`]; the parameters are those of the last accepted step.
+    UserStop,
+}
+
+/// What an iteration callback ([`crate::Problem::solve_with_callback`]) tells the solver.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum IterationControl {
+    /// Go on iterating.
+    Continue,
+    /// Stop now, keeping the last accepted point ([`Termination::UserStop`]).
+    Stop,
 }
 
 impl Termination {
@@ -47,6 +62,8 @@ impl Termination {
             Self::TooManyInvalidSteps => "too_many_invalid_steps",
             Self::EvaluationFailed => "evaluation_failed",
             Self::NoFreeParameters => "no_free_parameters",
+            Self::MaxSolverTime => "max_solver_time",
+            Self::UserStop => "user_stop",
         }
     }
 }

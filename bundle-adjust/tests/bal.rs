@@ -16,7 +16,10 @@ mod common;
 
 use approx::assert_relative_eq;
 use common::bal_path;
-use ibc_bundle_adjust::{BalProblem, LinearSolverType, RobustLoss, SolverOptions, Summary};
+use ibc_bundle_adjust::{
+    BalProblem, BalSyntaxError, BundleAdjustError, LinearSolverType, RobustLoss, SolverOptions,
+    Summary,
+};
 use nalgebra::{Rotation3, Vector3};
 
 fn problem49() -> BalProblem {
@@ -164,4 +167,40 @@ fn dubrovnik_parses_and_projects() {
         max_relative = 1e-12
     );
     assert!(bal.residual(19).is_none());
+}
+
+/// A file that ends too early names its last line (defect 4 of issue 16: it said line 0),
+/// wherever it is cut: in the header, in an observation, in the cameras or in the points,
+/// with or without a final newline.
+#[test]
+fn a_truncated_file_names_its_last_line() {
+    let text = std::fs::read_to_string(bal_path("dubrovnik-3-7-pre.txt")).unwrap();
+    let lines: Vec<&str> = text.lines().collect();
+    // Cut after each of these whole lines (header, an observation, a camera value, a point
+    // value), and once in the middle of the header line.
+    // The last line with a value (the file may end with empty lines).
+    let last = lines.iter().rposition(|l| !l.trim().is_empty()).unwrap();
+    for keep in [1, 5, lines.len() / 2, last] {
+        for newline in ["", "\n"] {
+            let cut = format!("{}{newline}", lines[..keep].join("\n"));
+            match BalProblem::parse(&cut) {
+                Err(BundleAdjustError::BalParse {
+                    line,
+                    source: BalSyntaxError::UnexpectedEnd { .. },
+                }) => assert_eq!(line, keep, "cut after line {keep}"),
+                other => panic!("cut after line {keep}: {other:?}"),
+            }
+        }
+    }
+    let header: Vec<&str> = lines[0].split_whitespace().collect();
+    match BalProblem::parse(&header[..2].join(" ")) {
+        Err(BundleAdjustError::BalParse { line, .. }) => assert_eq!(line, 1),
+        other => panic!("{other:?}"),
+    }
+    match BalProblem::parse("") {
+        Err(BundleAdjustError::BalParse { line, .. }) => assert_eq!(line, 1),
+        other => panic!("{other:?}"),
+    }
+    let err = BalProblem::parse(&lines[..5].join("\n")).unwrap_err();
+    assert!(err.to_string().starts_with("BAL file, line 5:"), "{err}");
 }

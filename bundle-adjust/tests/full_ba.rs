@@ -233,7 +233,8 @@ fn an_observation_behind_its_camera_at_the_start_is_left_out() {
         result.summary.final_cost.to_bits(),
         reference.summary.final_cost.to_bits()
     );
-    // A point seen only from behind is named.
+    // A point seen only from behind is left out with its observation, and counted; the rest
+    // of the scene is adjusted as without it (defect 3 of issue 16: it aborted the solve).
     let mut bad = start.clone();
     bad.points.push(x);
     bad.observations.push(BaObservation {
@@ -241,11 +242,31 @@ fn an_observation_behind_its_camera_at_the_start_is_left_out() {
         point: bad.points.len() - 1,
         pixel: Vector2::new(300.0, 200.0),
     });
+    let result = bad.solve(&options(false)).unwrap();
+    assert_eq!(result.excluded_points, vec![bad.points.len() - 1]);
+    assert_eq!(
+        result.excluded_observations,
+        vec![bad.observations.len() - 1]
+    );
+    assert_eq!(result.points[bad.points.len() - 1], x);
+    assert!(result.final_rms < 1e-6, "{}", result.final_rms);
+    let reference = start.solve(&options(false)).unwrap();
+    assert!(reference.excluded_points.is_empty());
+    assert_eq!(
+        result.summary.final_cost.to_bits(),
+        reference.summary.final_cost.to_bits()
+    );
+    for (a, b) in result.points.iter().zip(&reference.points) {
+        assert_eq!(a, b);
+    }
+    // A point no observation refers to is a mistake of the caller, named.
+    let mut bad = start.clone();
+    bad.points.push(x);
     assert_eq!(
         bad.solve(&options(false)).unwrap_err(),
         ibc_bundle_adjust::BundleAdjustError::PointWithoutObservations {
             point: bad.points.len() - 1,
-            excluded: 1
+            excluded: 0
         }
     );
 }

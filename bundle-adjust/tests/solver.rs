@@ -192,10 +192,22 @@ fn covariance_matches_the_inverse_normal_matrix() {
             )
             .unwrap();
     }
-    assert!(matches!(
-        singular.covariance(&[f], &SolverOptions::default()),
-        Err(ibc_bundle_adjust::BundleAdjustError::SingularInformation)
-    ));
+    // The reduced information is singular: named, with its reciprocal condition number at
+    // rounding level, and the block it lies in.
+    match singular.covariance(&[f], &SolverOptions::default()) {
+        Err(ibc_bundle_adjust::BundleAdjustError::CovarianceRankDeficient {
+            reciprocal_condition_number,
+            block,
+            ..
+        }) => {
+            assert!(
+                reciprocal_condition_number.abs() < 1e-14,
+                "{reciprocal_condition_number}"
+            );
+            assert_eq!(block, f.index());
+        }
+        other => panic!("{other:?}"),
+    }
 }
 
 /// r = [x − 1, x − 1] for a block [x, y]: y does not enter, so JᵀJ is singular.

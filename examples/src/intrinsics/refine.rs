@@ -238,7 +238,10 @@ pub(crate) fn refine(
                 (matrix.nrows() == 8 && matrix.ncols() == 8)
                     .then(|| SMatrix::<f64, 8, 8>::from_fn(|r, c| matrix[(r, c)] * noise_variance))
             }
-            Err(BundleAdjustError::SingularInformation) => None,
+            Err(
+                BundleAdjustError::SingularInformation
+                | BundleAdjustError::CovarianceRankDeficient { .. },
+            ) => None,
             Err(other) => return Err(IntrinsicsError::Solver(other)),
         }
     };

@@ -1,0 +1,329 @@
+//! The residuals and the constrained pose manifold of the rig bundle adjustment
+//! ([`crate::rig_bundle_adjustment`]).
+//!
+//! - [`RigBaReprojection`]: the reprojection error of a free point seen by one camera of the rig
+//!   in one frame, π_c(camera_from_rig_c · rig_from_world_i · X_j) − x, with the Jacobians of
+//!   the map-fixed rig refinement ([`crate::rig`]) for the two poses, ∂/∂X for the point and
+//!   the model's parameter Jacobian for the free intrinsics.
+//! - [`SpherePoseManifold`]: a pose whose translation is held at a fixed distance from a fixed
+//!   centre (a known baseline between two cameras, a known distance travelled between two rig
+//!   poses): the hard scale gauge. Rotation updated on the right as [`crate::Se3Manifold`]
+//!   does, translation moved along the sphere, five degrees of freedom.
+//! - [`PointDistancePrior`]: (|X_a − X_b| − d) / σ, the soft scale gauge of a known distance
+//!   between two points.
+
+use std::sync::{Arc, RwLock};
+
+use ibc_camera_models::{Camera, CameraModel};
+use nalgebra::{Isometry3, Matrix3, Matrix3x2, SMatrix, Vector2, Vector3};
+
+use crate::cost::{CostFunction, Jacobians};
+use crate::manifold::{
+    Manifold, se3_from_params, se3_from_unit_params, se3_to_params, so3_exp, sphere_tangent_basis,
+};
+use crate::rig::{rig_from_camera_jacobian, world_from_rig_jacobian};
+
+/// A pose `[qw, qx, qy, qz, tx, ty, tz]` whose translation stays on the sphere of radius
+/// `radius` about `centre`: x ⊞ δ with δ = `[a, b, φ]` rotates as T · Exp(φ) and moves the
+/// translation to `centre + radius · (t − centre + B [a, b]) / |t − centre + B [a, b]|`, B the
+/// sphere's tangent basis at t ([`sphere_tangent_basis`]), so ∂t/∂[a, b] = B at δ = 0.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct SpherePoseManifold {
+    pub centre: Vector3<f64>,
+    pub radius: f64,
+}
+
+impl SpherePoseManifold {
+    /// `pose` with its translation moved radially onto the sphere.
+    pub(crate) fn project(&self, pose: &Isometry3<f64>) -> Isometry3<f64> {
+        let d = pose.translation.vector - self.centre;
+        let mut out = *pose;
+        out.translation.vector = self.centre + d * (self.radius / d.norm());
+        out
+    }
+
+    /// The tangent basis of the sphere at translation `t`.
+    #[inline]
+    pub(crate) fn basis(&self, t: &Vector3<f64>) -> Matrix3x2<f64> {
+        sphere_tangent_basis(&(t - self.centre).normalize())
+    }
+}
+
+impl Manifold for SpherePoseManifold {
+    fn ambient_size(&self) -> usize {
+        7
+    }
+    fn tangent_size(&self) -> usize {
+        5
+    }
+    fn plus(&self, x: &[f64], delta: &[f64], x_plus_delta: &mut [f64]) {
+        let pose = se3_from_params(x);
+        let t = pose.translation.vector;
+        let step = self.basis(&t) * Vector2::new(delta[0], delta[1]);
+        let moved = t - self.centre + step;
+        let mut out = pose;
+        out.translation.vector = self.centre + moved * (self.radius / moved.norm());
+        out.rotation = pose.rotation * so3_exp(&Vector3::new(delta[2], delta[3], delta[4]));
+        out.rotation.renormalize();
+        x_plus_delta.copy_from_slice(&se3_to_params(&out));
+    }
+}
+
+/// Writes the Jacobian of a pose argument: the 2 × 6 right-perturbation Jacobian `j6`
+/// (`[ρ, φ]`, ρ in the pose's own frame) as is for an SE(3) block, or for a
+/// [`SpherePoseManifold`] block (5 columns `[a, b, φ]`) as `[J_ρ Rᵀ B, J_φ]`, since a sphere
+/// step moves the translation by B [a, b] = R ρ.
+#[inline]
+fn set_pose_jacobian(
+    jac: &mut Jacobians<'_>,
+    slot: usize,
+    j6: &SMatrix<f64, 2, 6>,
+    sphere: Option<&SpherePoseManifold>,
+    pose: &Isometry3<f64>,
+) {
+    match sphere {
+        None => jac.set(slot, j6),
+        Some(m) => {
+            let r: Matrix3<f64> = pose.rotation.to_rotation_matrix().into_inner();
+            let lift = r.transpose() * m.basis(&pose.translation.vector);
+            let mut j = SMatrix::<f64, 2, 5>::zeros();
+            j.fixed_view_mut::<2, 2>(0, 0)
+                .copy_from(&(j6.fixed_view::<2, 3>(0, 0) * lift));
+            j.fixed_view_mut::<2, 3>(0, 2)
+                .copy_from(&j6.fixed_view::<2, 3>(0, 3));
+            jac.set(slot, &j);
+        }
+    }
+}
+
+/// A camera whose free intrinsics follow their parameter block (the held ones stay at the
+/// camera's values): rebuilt and validated by its model only when the values change.
+#[derive(Debug)]
+pub(crate) struct IntrinsicsCache {
+    camera: RwLock<Camera>,
+    /// Indices (CamOdoCal order) of the free parameters, the order of the block.
+    pub free: Vec<usize>,
+}
+
+impl IntrinsicsCache {
+    pub(crate) fn new(camera: Camera, free: Vec<usize>) -> Self {
+        Self {
+            camera: RwLock::new(camera),
+            free,
+        }
+    }
+
+    fn matches(&self, camera: &Camera, values: &[f64]) -> bool {
+        let params = camera.params();
+        self.free
+            .iter()
+            .zip(values)
+            .all(|(&i, &v)| params.get(i) == Some(&v))
+    }
+
+    /// Calls `f` with the camera at the free values `values`, or `None` when the model
+    /// refuses them.
+    pub(crate) fn with<R>(&self, values: &[f64], f: impl Fn(&Camera) -> R) -> Option<R> {
+        if let Ok(camera) = self.camera.read()
+            && self.matches(&camera, values)
+        {
+            return Some(f(&camera));
+        }
+        let mut camera = self.camera.write().ok()?;
+        if !self.matches(&camera, values) {
+            let mut params = camera.params().to_vec();
+            for (&i, &v) in self.free.iter().zip(values) {
+                *params.get_mut(i)? = v;
+            }
+            camera.set_params(&params).ok()?;
+        }
+        Some(f(&camera))
+    }
+}
+
+/// Where a reprojection residual takes its intrinsics from.
+pub(crate) enum Intrinsics {
+    /// Held: camera `index` of the shared list.
+    Fixed(Arc<[Camera]>, usize),
+    /// Free (some of them): the last argument is the block of the free parameters.
+    Free(Arc<IntrinsicsCache>),
+}
+
+/// The reprojection error of one observation; arguments `[world_from_rig (7), rig_from_camera
+/// (7), point (3)]` and, with free intrinsics, `[.., intrinsics (free count)]`. A pose argument
+/// on a [`SpherePoseManifold`] gets its 5-column Jacobian.
+pub(crate) struct RigBaReprojection {
+    pub intrinsics: Intrinsics,
+    /// The argument sizes: `[7, 7, 3]` or `[7, 7, 3, free intrinsics]`.
+    pub sizes: [usize; 4],
+    pub n_args: usize,
+    pub pixel: Vector2<f64>,
+    /// The manifold of the rig pose's block, when it is the odometry-scale pose.
+    pub frame_sphere: Option<SpherePoseManifold>,
+    /// The manifold of the extrinsic's block, when it is the baseline camera.
+    pub camera_sphere: Option<SpherePoseManifold>,
+}
+
+impl CostFunction for RigBaReprojection {
+    fn num_residuals(&self) -> usize {
+        2
+    }
+
+    fn parameter_block_sizes(&self) -> &[usize] {
+        &self.sizes[..self.n_args]
+    }
+
+    fn evaluate(
+        &self,
+        parameters: &[&[f64]],
+        residuals: &mut [f64],
+        jacobians: Option<&mut Jacobians<'_>>,
+    ) -> bool {
+        let world_from_rig = se3_from_unit_params(parameters[0]);
+        let rig_from_camera = se3_from_unit_params(parameters[1]);
+        let x = Vector3::new(parameters[2][0], parameters[2][1], parameters[2][2]);
+        let p_rig =
+            world_from_rig.inverse_transform_vector(&(x - world_from_rig.translation.vector));
+        let p_cam =
+            rig_from_camera.inverse_transform_vector(&(p_rig - rig_from_camera.translation.vector));
+        let Some(jac) = jacobians else {
+            let pixel = match &self.intrinsics {
+                Intrinsics::Fixed(cameras, c) => cameras[*c].project(&p_cam).ok(),
+                Intrinsics::Free(cache) => cache
+                    .with(parameters[3], |cam| cam.project(&p_cam).ok())
+                    .flatten(),
+            };
+            let Some(pixel) = pixel else { return false };
+            residuals[0] = pixel.x - self.pixel.x;
+            residuals[1] = pixel.y - self.pixel.y;
+            return true;
+        };
+        // The parameter Jacobian only when the intrinsics are free.
+        let (pixel, d_pixel, d_params) = match &self.intrinsics {
+            Intrinsics::Fixed(cameras, c) => {
+                let Ok((pixel, d_pixel)) = cameras[*c].project_with_point_jacobian(&p_cam) else {
+                    return false;
+                };
+                (pixel, d_pixel, None)
+            }
+            Intrinsics::Free(cache) => {
+                let Some(Ok(pj)) =
+                    cache.with(parameters[3], |cam| cam.project_with_jacobians(&p_cam))
+                else {
+                    return false;
+                };
+                (pj.pixel, pj.d_pixel_d_point, Some(pj.d_pixel_d_params))
+            }
+        };
+        residuals[0] = pixel.x - self.pixel.x;
+        residuals[1] = pixel.y - self.pixel.y;
+        let camera_from_rig: Matrix3<f64> = rig_from_camera
+            .rotation
+            .to_rotation_matrix()
+            .into_inner()
+            .transpose();
+        let d_rig = d_pixel * camera_from_rig;
+        if jac.wants(0) {
+            let j = world_from_rig_jacobian(&d_rig, &p_rig);
+            set_pose_jacobian(jac, 0, &j, self.frame_sphere.as_ref(), &world_from_rig);
+        }
+        if jac.wants(1) {
+            let j = rig_from_camera_jacobian(&d_pixel, &p_cam);
+            set_pose_jacobian(jac, 1, &j, self.camera_sphere.as_ref(), &rig_from_camera);
+        }
+        if jac.wants(2) {
+            let rig_from_world: Matrix3<f64> = world_from_rig
+                .rotation
+                .to_rotation_matrix()
+                .into_inner()
+                .transpose();
+            jac.set(2, &(d_rig * rig_from_world));
+        }
+        if let (Intrinsics::Free(cache), Some(d_params)) = (&self.intrinsics, d_params)
+            && let Some(j) = jac.row_major_mut(3)
+        {
+            let n = cache.free.len();
+            for row in 0..2 {
+                for (col, &p) in cache.free.iter().enumerate() {
+                    j[row * n + col] = d_params[(row, p)];
+                }
+            }
+        }
+        true
+    }
+}
+
+/// (|X_a − X_b| − d) / σ; arguments `[X_a (3), X_b (3)]`.
+pub(crate) struct PointDistancePrior {
+    pub distance: f64,
+    pub sigma: f64,
+}
+
+impl CostFunction for PointDistancePrior {
+    fn num_residuals(&self) -> usize {
+        1
+    }
+
+    fn parameter_block_sizes(&self) -> &[usize] {
+        &[3, 3]
+    }
+
+    fn evaluate(
+        &self,
+        parameters: &[&[f64]],
+        residuals: &mut [f64],
+        jacobians: Option<&mut Jacobians<'_>>,
+    ) -> bool {
+        let a = Vector3::new(parameters[0][0], parameters[0][1], parameters[0][2]);
+        let b = Vector3::new(parameters[1][0], parameters[1][1], parameters[1][2]);
+        let d = a - b;
+        let norm = d.norm();
+        if norm.is_nan() || norm <= 0.0 {
+            return false;
+        }
+        residuals[0] = (norm - self.distance) / self.sigma;
+        if let Some(jac) = jacobians {
+            let u = d / (norm * self.sigma);
+            jac.set(0, &u.transpose());
+            jac.set(1, &(-u.transpose()));
+        }
+        true
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use approx::assert_relative_eq;
+
+    #[test]
+    fn sphere_manifold_stays_on_the_sphere_and_matches_its_basis() {
+        let m = SpherePoseManifold {
+            centre: Vector3::new(0.3, -0.2, 0.1),
+            radius: 2.5,
+        };
+        let pose = m.project(&Isometry3::new(
+            Vector3::new(2.0, 1.0, 0.5),
+            Vector3::new(0.1, 0.2, -0.3),
+        ));
+        let x = se3_to_params(&pose);
+        let mut out = [0.0; 7];
+        m.plus(&x, &[0.3, -0.2, 0.01, 0.02, -0.03], &mut out);
+        let moved = se3_from_params(&out);
+        assert_relative_eq!(
+            (moved.translation.vector - m.centre).norm(),
+            2.5,
+            epsilon = 1e-12
+        );
+        // ∂t/∂[a, b] = B at δ = 0.
+        let h = 1e-7;
+        let basis = m.basis(&pose.translation.vector);
+        for k in 0..2 {
+            let mut d = [0.0; 5];
+            d[k] = h;
+            m.plus(&x, &d, &mut out);
+            let fd = (se3_from_params(&out).translation.vector - pose.translation.vector) / h;
+            assert_relative_eq!(fd, basis.column(k).into_owned(), epsilon = 1e-6);
+        }
+    }
+}

@@ -1,0 +1,298 @@
+//! Rig bundle adjustment with free points (`ibc_bundle_adjust::RigBundleAdjustment`) on the
+//! pipeline's simulated garage world, the world COLMAP 4.2's figures of issue 16 were measured
+//! on: the car's four 190-degree Kannala-Brandt fisheyes, 500 frames around the 295 m loop,
+//! keypoint noise sigma 0.5 px. Observations: every log feature on a map point whose
+//! keypoint's ray is within 85 degrees of the optical axis (COLMAP cannot use wider rays),
+//! points seen at least twice.
+//!
+//! Start (seed 16): the extrinsics of the left, rear and right cameras turned 2 degrees about
+//! a random axis and moved 10 cm in a random direction (the front camera, the reference,
+//! exact); every point moved 5 cm in a random direction; the rig poses the truth turned
+//! 0.1 degree about a random axis and moved 1 cm. The scale is fixed by the true front-rear
+//! baseline.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
+use std::collections::HashMap;
+use std::time::Instant;
+
+use ibc_pipeline::ibc_bundle_adjust::{
+    RigBaObservation, RigBundleAdjustment, RigBundleAdjustmentOptions, RigBundleAdjustmentResult,
+    ScaleGauge,
+};
+use ibc_pipeline::ibc_camera_models::CameraModel;
+use ibc_pipeline::nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
+use ibc_pipeline::sim::{Scenario, SimulatedWorld};
+use rand::{RngExt, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+/// COLMAP 4.2 on this world (issue 16): worst-camera extrinsic error with points free.
+const COLMAP_DEG: f64 = 0.0021;
+const COLMAP_MM: f64 = 0.54;
+/// ... and with intrinsics free, plus its focal-length error.
+const COLMAP_INTRINSICS_DEG: f64 = 0.013;
+const COLMAP_INTRINSICS_MM: f64 = 0.61;
+const FOCAL_PX: f64 = 0.05;
+
+fn random_unit(rng: &mut ChaCha8Rng) -> Vector3<f64> {
+    loop {
+        let v = Vector3::new(
+            rng.random_range(-1.0..1.0),
+            rng.random_range(-1.0..1.0),
+            rng.random_range(-1.0..1.0),
+        );
+        let n = v.norm();
+        if n > 0.1 && n <= 1.0 {
+            return v / n;
+        }
+    }
+}
+
+fn perturb(pose: &Isometry3<f64>, deg: f64, m: f64, rng: &mut ChaCha8Rng) -> Isometry3<f64> {
+    let turn = UnitQuaternion::from_scaled_axis(random_unit(rng) * deg.to_radians());
+    Isometry3::from_parts(
+        Translation3::from(pose.translation.vector + random_unit(rng) * m),
+        pose.rotation * turn,
+    )
+}
+
+struct Setup {
+    problem: RigBundleAdjustment,
+    truth_rig_from_camera: Vec<Isometry3<f64>>,
+    truth_params: Vec<Vec<f64>>,
+    baseline: f64,
+}
+
+fn setup() -> Setup {
+    setup_scaled(1.0)
+}
+
+fn setup_scaled(scale: f64) -> Setup {
+    let scenario = Scenario::resolve("garage")
+        .unwrap()
+        .with_seed(1)
+        .with_scale(scale);
+    let world = SimulatedWorld::simulate(&scenario).unwrap();
+    let mut rng = ChaCha8Rng::seed_from_u64(16);
+    let cameras: Vec<_> = world.rig.cameras.iter().map(|c| c.camera.clone()).collect();
+    let mut index: HashMap<u32, usize> = HashMap::new();
+    let mut observations = Vec::new();
+    let mut ids = Vec::new();
+    for (f, frame) in world.log.frames.iter().enumerate() {
+        for (c, image) in frame.images.iter().enumerate() {
+            for (k, id) in world.log_point_ids[f][c].iter().enumerate() {
+                let Some(id) = *id else { continue };
+                let pixel = image.keypoints[k];
+                let Ok(ray) = cameras[c].unproject(&pixel) else {
+                    continue;
+                };
+                if ray.z < 85f64.to_radians().cos() {
+                    continue;
+                }
+                let next = index.len();
+                let point = *index.entry(id).or_insert_with(|| {
+                    ids.push(id);
+                    next
+                });
+                observations.push(RigBaObservation {
+                    frame: f,
+                    camera: c,
+                    point,
+                    pixel,
+                });
+            }
+        }
+    }
+    // Points seen at least twice.
+    let mut count = vec![0usize; ids.len()];
+    for o in &observations {
+        count[o.point] += 1;
+    }
+    let mut remap = vec![usize::MAX; ids.len()];
+    let mut kept = Vec::new();
+    for (j, &id) in ids.iter().enumerate() {
+        if count[j] >= 2 {
+            remap[j] = kept.len();
+            kept.push(id);
+        }
+    }
+    observations.retain(|o| remap[o.point] != usize::MAX);
+    for o in &mut observations {
+        o.point = remap[o.point];
+    }
+    let points = kept
+        .iter()
+        .map(|&id| world.true_map_points[id as usize].coords + random_unit(&mut rng) * 0.05)
+        .collect();
+    let truth = world.truth.rig_from_camera.clone();
+    let rig_from_camera = truth
+        .iter()
+        .enumerate()
+        .map(|(c, p)| {
+            if c == 0 {
+                *p
+            } else {
+                perturb(p, 2.0, 0.10, &mut rng)
+            }
+        })
+        .collect();
+    let world_from_rig = world
+        .truth
+        .world_from_rig
+        .iter()
+        .map(|p| perturb(p, 0.1, 0.01, &mut rng))
+        .collect();
+    Setup {
+        baseline: (truth[2].translation.vector - truth[0].translation.vector).norm(),
+        truth_params: cameras.iter().map(|c| c.params().to_vec()).collect(),
+        truth_rig_from_camera: truth,
+        problem: RigBundleAdjustment {
+            cameras,
+            rig_from_camera,
+            world_from_rig,
+            points,
+            observations,
+        },
+    }
+}
+
+/// Worst rotation (degrees) and translation (mm) error of `ref_from_camera` over cameras 1..
+fn worst_error(truth: &[Isometry3<f64>], result: &RigBundleAdjustmentResult) -> (f64, f64) {
+    let est = &result.rig_from_camera;
+    let mut worst = (0.0f64, 0.0f64);
+    for c in 1..truth.len() {
+        let t = truth[0].inverse() * truth[c];
+        let e = est[0].inverse() * est[c];
+        let d = t.inverse() * e;
+        worst.0 = worst.0.max(d.rotation.angle().to_degrees());
+        worst.1 = worst
+            .1
+            .max((t.translation.vector - e.translation.vector).norm() * 1e3);
+    }
+    worst
+}
+
+fn options(s: &Setup) -> RigBundleAdjustmentOptions {
+    RigBundleAdjustmentOptions {
+        scale: ScaleGauge::Baseline {
+            camera: 2,
+            distance_m: s.baseline,
+        },
+        ..Default::default()
+    }
+}
+
+/// Points free, then points and intrinsics free (focal lengths starting 1 px off).
+fn points_then_intrinsics(s: &Setup) -> ((f64, f64), (f64, f64, f64)) {
+    let t = Instant::now();
+    let r = s.problem.solve(&options(s)).unwrap();
+    let seconds = t.elapsed().as_secs_f64();
+    let points_free = worst_error(&s.truth_rig_from_camera, &r);
+    eprintln!(
+        "points free: {} observations, {} points; worst {:.5} deg / {:.3} mm; rms {:.3} -> {:.3} px; {} iterations, {}; {seconds:.2} s",
+        s.problem.observations.len(),
+        s.problem.points.len(),
+        points_free.0,
+        points_free.1,
+        r.initial_rms,
+        r.final_rms,
+        r.summary.iterations,
+        r.summary.termination
+    );
+    assert!(
+        r.summary.termination.is_converged(),
+        "{}",
+        r.summary.report()
+    );
+
+    let mut start = s.problem.clone();
+    for c in &mut start.cameras {
+        let mut p = c.params().to_vec();
+        p[4] += 1.0;
+        p[5] -= 1.0;
+        c.set_params(&p).unwrap();
+    }
+    let t = Instant::now();
+    let r = start
+        .solve(&RigBundleAdjustmentOptions {
+            optimize_intrinsics: true,
+            ..options(s)
+        })
+        .unwrap();
+    let seconds = t.elapsed().as_secs_f64();
+    let (deg, mm) = worst_error(&s.truth_rig_from_camera, &r);
+    let focal = r
+        .cameras
+        .iter()
+        .zip(&s.truth_params)
+        .map(|(c, t)| {
+            (c.params()[4] - t[4])
+                .abs()
+                .max((c.params()[5] - t[5]).abs())
+        })
+        .fold(0.0, f64::max);
+    eprintln!(
+        "intrinsics free: worst {deg:.5} deg / {mm:.3} mm, focal {focal:.4} px; rms {:.3} -> {:.3} px; {} iterations, {}; {seconds:.2} s",
+        r.initial_rms, r.final_rms, r.summary.iterations, r.summary.termination
+    );
+    assert!(
+        r.summary.termination.is_converged(),
+        "{}",
+        r.summary.report()
+    );
+    (points_free, (deg, mm, focal))
+}
+
+/// The garage at a fifth of its size (100 frames x 4 cameras, 275k observations): COLMAP's
+/// full-size accuracy with points free already.
+#[test]
+fn fifth_of_the_garage_points_free_meets_colmap() {
+    let s = setup_scaled(0.2);
+    let options = RigBundleAdjustmentOptions {
+        covariance: true,
+        ..options(&s)
+    };
+    let r = s.problem.solve(&options).unwrap();
+    assert!(
+        r.summary.termination.is_converged(),
+        "{}",
+        r.summary.report()
+    );
+    let (deg, mm) = worst_error(&s.truth_rig_from_camera, &r);
+    eprintln!("fifth: worst {deg:.5} deg / {mm:.3} mm");
+    assert!(deg <= COLMAP_DEG && mm <= COLMAP_MM, "{deg} deg / {mm} mm");
+    // The covariance at the simulator's 0.5 px: every extrinsic determined, and the largest
+    // predicted rotation standard deviation of the order of the errors.
+    let sigma = 0.5;
+    let worst_std_deg = (1..4)
+        .map(|c| {
+            let cov = r.extrinsic_covariance[c].unwrap();
+            (3..6)
+                .map(|k| cov[(k, k)].sqrt() * sigma)
+                .fold(0.0, f64::max)
+                .to_degrees()
+        })
+        .fold(0.0, f64::max);
+    eprintln!("fifth: largest predicted rotation std {worst_std_deg:.5} deg");
+    assert!(
+        r.observability
+            .iter()
+            .all(|p| p.observability > 0.0 && p.std_dev.is_finite())
+    );
+    assert!(deg < 10.0 * worst_std_deg && worst_std_deg < 10.0 * COLMAP_DEG);
+}
+
+/// The full garage (4 x 500, 1.8M observations), COLMAP's world: both bars of issue 16.
+/// Minutes in release on a shared 2-core machine, hence ignored; run with
+/// `cargo test -p ibc-pipeline --release --test rig_bundle_adjust -- --ignored full_garage --nocapture`.
+#[test]
+#[ignore]
+fn full_garage_meets_colmap_points_free_and_intrinsics_free() {
+    let s = setup();
+    let ((deg, mm), (ideg, imm, focal)) = points_then_intrinsics(&s);
+    assert!(deg <= COLMAP_DEG && mm <= COLMAP_MM, "{deg} deg / {mm} mm");
+    assert!(
+        ideg <= COLMAP_INTRINSICS_DEG && imm <= COLMAP_INTRINSICS_MM,
+        "{ideg} deg / {imm} mm"
+    );
+    assert!(focal <= FOCAL_PX, "{focal} px");
+}
