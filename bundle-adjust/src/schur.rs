@@ -448,7 +448,7 @@ fn eliminate_range<S: Shape, M: MulAdd>(
                 }
                 let f = shape.f(s.cols as usize);
                 let jf = &jr[s.offset as usize..s.offset as usize + rows * f];
-                add_at_b::<M>(v, voffs[info.f_local as usize], f, jf, je, rows, f, e);
+                add_pair::<M>(v, voffs[info.f_local as usize], f, jf, je, rows, f, e);
             }
             for cp in &layout.c_pairs[layout.c_start[ri]..layout.c_start[ri + 1]] {
                 let sa = slots[cp.row_slot as usize];
@@ -457,7 +457,7 @@ fn eliminate_range<S: Shape, M: MulAdd>(
                 let fb = shape.f(sb.cols as usize);
                 let ja = &jr[sa.offset as usize..sa.offset as usize + rows * fa];
                 let jb = &jr[sb.offset as usize..sb.offset as usize + rows * fb];
-                add_at_b::<M>(target, cp.addr, layout.ld(fa), ja, jb, rows, fa, fb);
+                add_pair::<M>(target, cp.addr, layout.ld(fa), ja, jb, rows, fa, fb);
             }
         }
         for k in 0..e {
@@ -487,7 +487,7 @@ fn eliminate_range<S: Shape, M: MulAdd>(
                 for (q, &fq) in fs[..=p].iter().enumerate() {
                     let mq = shape.f(program.f_size(fq as usize));
                     let vq = &v[voffs[q]..voffs[q] + mq * e];
-                    sub_a_bt::<M>(target, addrs[k], layout.ld(mp), vp, vq, mp, mq, e);
+                    sub_pair::<M>(target, addrs[k], layout.ld(mp), vp, vq, mp, mq, e);
                     k += 1;
                 }
             }
@@ -500,6 +500,51 @@ fn eliminate_range<S: Shape, M: MulAdd>(
         }
     }
     ok
+}
+
+/// `add_at_b` for one residual's pair of arguments, with the rig bundle adjustment's sizes
+/// (2 rows; a pose and a point, two poses) fixed at compile time on the dynamic shape, as
+/// [`sub_pair`] does.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn add_pair<M: MulAdd>(
+    out: &mut [f64],
+    base: usize,
+    ld: usize,
+    a: &[f64],
+    b: &[f64],
+    r: usize,
+    m: usize,
+    n: usize,
+) {
+    match (r, m, n) {
+        (2, 6, 3) => add_at_b::<M>(out, base, ld, a, b, 2, 6, 3),
+        (2, 6, 6) => add_at_b::<M>(out, base, ld, a, b, 2, 6, 6),
+        _ => add_at_b::<M>(out, base, ld, a, b, r, m, n),
+    }
+}
+
+/// `sub_a_bt` for one pair of reduced blocks of a chunk. Problems whose residuals have
+/// several reduced arguments of different sizes (a rig bundle adjustment: rig pose, extrinsic,
+/// intrinsics) run on the dynamic shape; their most frequent pair, two poses of a point
+/// (6 x 6 through e = 3), gets sizes fixed at compile time, which unrolls the update (the
+/// same operations in the same order, so the same result).
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn sub_pair<M: MulAdd>(
+    target: &mut [f64],
+    addr: usize,
+    ld: usize,
+    vp: &[f64],
+    vq: &[f64],
+    mp: usize,
+    mq: usize,
+    e: usize,
+) {
+    match (mp, mq, e) {
+        (6, 6, 3) => sub_a_bt::<M>(target, addr, ld, vp, vq, 6, 6, 3),
+        _ => sub_a_bt::<M>(target, addr, ld, vp, vq, mp, mq, e),
+    }
 }
 
 /// JᵀJ blocks of the residuals that have no eliminated argument.
