@@ -710,6 +710,10 @@ impl BundleAdjustment {
                 problem.set_constant(k, true)?;
             }
         }
+        // Residual blocks in point order, the order in which the solver visits them (a
+        // stable sort: ascending within a point, so the solve is unchanged), so that its
+        // passes read the residual blocks and their cost functions from memory in sequence.
+        costs.sort_by_key(|(_, o, _, _)| o.point);
         let mut residuals = vec![None; self.observations.len()];
         for (i, o, c, cost) in costs {
             residuals[i] = Some(problem.add_residual_block(

@@ -745,6 +745,11 @@ impl RigBundleAdjustment {
                 problem.set_constant(extrinsics[c], true)?;
             }
         }
+        // Residual blocks in point order, the order in which the solver visits them (grouped
+        // by eliminated point, ascending within a point: a stable sort leaves that order and
+        // so the solve unchanged), so that its passes read the residual blocks and their cost
+        // functions from memory in sequence instead of scattered over the problem.
+        costs.sort_by_key(|(o, _)| o.point);
         for (o, cost) in costs {
             let mut blocks = vec![frames[o.frame], extrinsics[o.camera], points[o.point]];
             if let Some((k, _)) = &intrinsics[o.camera] {

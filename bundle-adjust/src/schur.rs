@@ -502,9 +502,36 @@ fn eliminate_range<S: Shape, M: MulAdd>(
     ok
 }
 
-/// `add_at_b` for one residual's pair of arguments, with the rig bundle adjustment's sizes
-/// (2 rows; a pose and a point, two poses) fixed at compile time on the dynamic shape, as
-/// [`sub_pair`] does.
+/// Evaluates `$kernel` with `$size` bound to `$fixed`, a constant when it is one of the
+/// reduced block sizes of a rig bundle adjustment (5: a pose on a sphere, 6: a pose, 8 and 9:
+/// the intrinsics of the camera models), so that the inlined kernel's loops are unrolled; the
+/// same operations in the same order either way, so the same result.
+macro_rules! with_fixed_size {
+    ($size:expr, |$fixed:ident| $kernel:expr) => {
+        match $size {
+            5 => {
+                let $fixed = 5;
+                $kernel
+            }
+            6 => {
+                let $fixed = 6;
+                $kernel
+            }
+            8 => {
+                let $fixed = 8;
+                $kernel
+            }
+            9 => {
+                let $fixed = 9;
+                $kernel
+            }
+            $fixed => $kernel,
+        }
+    };
+}
+
+/// `add_at_b` for one residual's pair of arguments (two rows: a pose and a point, two poses,
+/// a pose and intrinsics), with [`with_fixed_size`]'s sizes on the dynamic shape.
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
 fn add_pair<M: MulAdd>(
@@ -517,18 +544,19 @@ fn add_pair<M: MulAdd>(
     m: usize,
     n: usize,
 ) {
-    match (r, m, n) {
-        (2, 6, 3) => add_at_b::<M>(out, base, ld, a, b, 2, 6, 3),
-        (2, 6, 6) => add_at_b::<M>(out, base, ld, a, b, 2, 6, 6),
+    match (r, n) {
+        (2, 3) => with_fixed_size!(m, |fm| add_at_b::<M>(out, base, ld, a, b, 2, fm, 3)),
+        (2, _) => with_fixed_size!(m, |fm| with_fixed_size!(n, |fn_| {
+            add_at_b::<M>(out, base, ld, a, b, 2, fm, fn_)
+        })),
         _ => add_at_b::<M>(out, base, ld, a, b, r, m, n),
     }
 }
 
-/// `sub_a_bt` for one pair of reduced blocks of a chunk. Problems whose residuals have
-/// several reduced arguments of different sizes (a rig bundle adjustment: rig pose, extrinsic,
-/// intrinsics) run on the dynamic shape; their most frequent pair, two poses of a point
-/// (6 x 6 through e = 3), gets sizes fixed at compile time, which unrolls the update (the
-/// same operations in the same order, so the same result).
+/// `sub_a_bt` for one pair of reduced blocks of a chunk, with [`with_fixed_size`]'s sizes
+/// when the eliminated block is a point (e = 3). Problems whose residuals have several
+/// reduced arguments of different sizes (a rig bundle adjustment: rig pose, extrinsic,
+/// intrinsics) run on the dynamic shape, where this pair update is the elimination's cost.
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
 fn sub_pair<M: MulAdd>(
@@ -541,9 +569,12 @@ fn sub_pair<M: MulAdd>(
     mq: usize,
     e: usize,
 ) {
-    match (mp, mq, e) {
-        (6, 6, 3) => sub_a_bt::<M>(target, addr, ld, vp, vq, 6, 6, 3),
-        _ => sub_a_bt::<M>(target, addr, ld, vp, vq, mp, mq, e),
+    if e == 3 {
+        with_fixed_size!(mp, |fp| with_fixed_size!(mq, |fq| {
+            sub_a_bt::<M>(target, addr, ld, vp, vq, fp, fq, 3)
+        }));
+    } else {
+        sub_a_bt::<M>(target, addr, ld, vp, vq, mp, mq, e);
     }
 }
 
