@@ -200,3 +200,38 @@ fn a_cost_function_uses_the_manifold_conversions_and_a_robust_loss() {
     assert!(read.angle_to(&q) < 1e-15);
     assert_eq!(UnitQuaternionManifold::rotation(&stored[..3]), None);
 }
+
+/// The options of issue 16 (rig bundle adjustment, gauges, budgets), written as a caller
+/// outside the crate writes them.
+#[test]
+fn issue_16_options_are_one_expression() {
+    use ibc_bundle_adjust::{Gauge, RigBundleAdjustmentOptions, ScaleGauge};
+    let rig = RigBundleAdjustmentOptions {
+        optimize_intrinsics: true,
+        held_intrinsics: vec![(0, 2), (0, 3)],
+        scale: ScaleGauge::Odometry {
+            frame: 10,
+            distance_m: 3.2,
+        },
+        solver: SolverOptions {
+            max_solver_time_in_seconds: 0.5,
+            min_reciprocal_condition_number: 1e-12,
+            ..Default::default()
+        },
+        ..Default::default()
+    };
+    assert_eq!(rig.reference_camera, 0);
+    assert!(!rig.covariance);
+    let ba = BundleAdjustmentOptions {
+        gauge: Gauge::Similarity {
+            reference_image: 0,
+            scale_image: 4,
+        },
+        ..Default::default()
+    };
+    assert!(!ba.optimize_intrinsics);
+    assert_eq!(
+        SolverOptions::default().min_reciprocal_condition_number,
+        1e-14
+    );
+}

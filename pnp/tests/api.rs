@@ -124,3 +124,37 @@ fn absolute_pose_as_a_user_calls_it() {
     // angle by about 1e-9 rad within 1.5 px of the centre).
     assert!((pose.threshold - (1.5f64 / 600.0).atan()).abs() < 1e-8);
 }
+
+/// The two-view options of issue 16, written as a caller outside the crate writes them.
+#[test]
+fn two_view_options_are_one_expression() {
+    use ibc_pnp::{
+        RELATIVE_POSE_MAX_ITERATIONS, RELATIVE_POSE_MIN_PARALLAX, RelativePoseOptions,
+        TRIANGULATION_MIN_PARALLAX, TriangulationOptions,
+    };
+    let defaults = RelativePoseOptions::default();
+    assert_eq!(defaults.ransac.max_iterations, RELATIVE_POSE_MAX_ITERATIONS);
+    assert_eq!(defaults.min_parallax, RELATIVE_POSE_MIN_PARALLAX);
+    assert!(defaults.model_selection);
+    let relative = RelativePoseOptions {
+        ransac: RansacOptions {
+            threshold: 1e-3,
+            seed: 9,
+            ..defaults.ransac.clone()
+        },
+        model_selection: false,
+        ..defaults
+    };
+    assert_eq!(relative.ransac.max_iterations, RELATIVE_POSE_MAX_ITERATIONS);
+    assert_eq!(relative.ransac.seed, 9);
+    let triangulation = TriangulationOptions {
+        min_parallax: 2f64.to_radians(),
+        max_iterations: 5,
+        ..Default::default()
+    };
+    assert!(triangulation.refine);
+    assert_eq!(
+        TriangulationOptions::default().min_parallax,
+        TRIANGULATION_MIN_PARALLAX
+    );
+}

@@ -94,3 +94,29 @@ fn entry_points_take_the_options_and_name_bad_ones() {
         })
     ));
 }
+
+/// The viewing-graph options of issue 16, written as a caller outside the crate writes them.
+#[test]
+fn viewing_graph_options_are_one_expression() {
+    use ibc_rig_averaging::{RotationAveragingOptions, ScaleGauge, TranslationAveragingOptions};
+    let rotations = RotationAveragingOptions {
+        robust_scale: Some(2f64.to_radians()),
+        reference_camera: 1,
+        ..Default::default()
+    };
+    assert_eq!(rotations.irls_iterations, 50);
+    let translations = TranslationAveragingOptions {
+        robust: false,
+        scale: ScaleGauge::ViewDistance {
+            from: 0,
+            to: 3,
+            distance: 1.5,
+        },
+        ..Default::default()
+    };
+    assert_eq!(translations.reference_camera, 0);
+    assert_eq!(
+        TranslationAveragingOptions::default().scale,
+        ScaleGauge::MeanBaseline
+    );
+}
