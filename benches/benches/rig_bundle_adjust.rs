@@ -11,15 +11,13 @@
 //! --measurement-time 3`.
 #![allow(missing_docs, clippy::unwrap_used, clippy::expect_used)]
 
-use std::collections::HashMap;
 use std::time::Duration;
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use ibc_bundle_adjust::{
-    LinearSolverType, RigBaObservation, RigBundleAdjustment, RigBundleAdjustmentOptions,
-    RigObservation, RigRefinement, RigRefinementOptions, ScaleGauge, SolverOptions,
+    LinearSolverType, RigBundleAdjustment, RigBundleAdjustmentOptions, RigObservation,
+    RigRefinement, RigRefinementOptions, ScaleGauge, SolverOptions,
 };
-use ibc_camera_models::CameraModel;
 use ibc_pipeline::sim::{Scenario, SimulatedWorld};
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use rand::{RngExt, SeedableRng};
@@ -60,50 +58,7 @@ fn garage() -> (RigBundleAdjustment, RigRefinement, f64) {
     let world = SimulatedWorld::simulate(&scenario).unwrap();
     let mut rng = ChaCha8Rng::seed_from_u64(16);
     let cameras: Vec<_> = world.rig.cameras.iter().map(|c| c.camera.clone()).collect();
-    let mut index: HashMap<u32, usize> = HashMap::new();
-    let mut ids = Vec::new();
-    let mut observations = Vec::new();
-    for (f, frame) in world.log.frames.iter().enumerate() {
-        for (c, image) in frame.images.iter().enumerate() {
-            for (k, id) in world.log_point_ids[f][c].iter().enumerate() {
-                let Some(id) = *id else { continue };
-                let pixel = image.keypoints[k];
-                let Ok(ray) = cameras[c].unproject(&pixel) else {
-                    continue;
-                };
-                if ray.z < 85f64.to_radians().cos() {
-                    continue;
-                }
-                let next = index.len();
-                let point = *index.entry(id).or_insert_with(|| {
-                    ids.push(id);
-                    next
-                });
-                observations.push(RigBaObservation {
-                    frame: f,
-                    camera: c,
-                    point,
-                    pixel,
-                });
-            }
-        }
-    }
-    let mut count = vec![0usize; ids.len()];
-    for o in &observations {
-        count[o.point] += 1;
-    }
-    let mut remap = vec![usize::MAX; ids.len()];
-    let mut kept = Vec::new();
-    for (j, &id) in ids.iter().enumerate() {
-        if count[j] >= 2 {
-            remap[j] = kept.len();
-            kept.push(id);
-        }
-    }
-    observations.retain(|o| remap[o.point] != usize::MAX);
-    for o in &mut observations {
-        o.point = remap[o.point];
-    }
+    let (observations, kept) = world.free_point_observations(85f64.to_radians());
     let truth = &world.truth.rig_from_camera;
     let rig_from_camera: Vec<_> = truth
         .iter()

@@ -12,12 +12,10 @@
 //! baseline.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
-use std::collections::HashMap;
 use std::time::Instant;
 
 use ibc_pipeline::ibc_bundle_adjust::{
-    RigBaObservation, RigBundleAdjustment, RigBundleAdjustmentOptions, RigBundleAdjustmentResult,
-    ScaleGauge,
+    RigBundleAdjustment, RigBundleAdjustmentOptions, RigBundleAdjustmentResult, ScaleGauge,
 };
 use ibc_pipeline::ibc_camera_models::CameraModel;
 use ibc_pipeline::nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
@@ -74,51 +72,7 @@ fn setup_scaled(scale: f64) -> Setup {
     let world = SimulatedWorld::simulate(&scenario).unwrap();
     let mut rng = ChaCha8Rng::seed_from_u64(16);
     let cameras: Vec<_> = world.rig.cameras.iter().map(|c| c.camera.clone()).collect();
-    let mut index: HashMap<u32, usize> = HashMap::new();
-    let mut observations = Vec::new();
-    let mut ids = Vec::new();
-    for (f, frame) in world.log.frames.iter().enumerate() {
-        for (c, image) in frame.images.iter().enumerate() {
-            for (k, id) in world.log_point_ids[f][c].iter().enumerate() {
-                let Some(id) = *id else { continue };
-                let pixel = image.keypoints[k];
-                let Ok(ray) = cameras[c].unproject(&pixel) else {
-                    continue;
-                };
-                if ray.z < 85f64.to_radians().cos() {
-                    continue;
-                }
-                let next = index.len();
-                let point = *index.entry(id).or_insert_with(|| {
-                    ids.push(id);
-                    next
-                });
-                observations.push(RigBaObservation {
-                    frame: f,
-                    camera: c,
-                    point,
-                    pixel,
-                });
-            }
-        }
-    }
-    // Points seen at least twice.
-    let mut count = vec![0usize; ids.len()];
-    for o in &observations {
-        count[o.point] += 1;
-    }
-    let mut remap = vec![usize::MAX; ids.len()];
-    let mut kept = Vec::new();
-    for (j, &id) in ids.iter().enumerate() {
-        if count[j] >= 2 {
-            remap[j] = kept.len();
-            kept.push(id);
-        }
-    }
-    observations.retain(|o| remap[o.point] != usize::MAX);
-    for o in &mut observations {
-        o.point = remap[o.point];
-    }
+    let (observations, kept) = world.free_point_observations(85f64.to_radians());
     let points = kept
         .iter()
         .map(|&id| world.true_map_points[id as usize].coords + random_unit(&mut rng) * 0.05)

@@ -1,9 +1,11 @@
 //! [`SimulatedWorld`]: a scenario simulated into a map, a rig log and their ground truth, and
 //! written to a folder.
 
+use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
-use ibc_camera_models::Rig;
+use ibc_bundle_adjust::RigBaObservation;
+use ibc_camera_models::{CameraModel, Rig};
 use nalgebra::{Isometry3, Point3, Vector3};
 use rand_distr::{Distribution, Normal};
 use rayon::prelude::*;
@@ -393,6 +395,72 @@ impl SimulatedWorld {
             median_range_m: quantile(0.5),
             p90_range_m: quantile(0.9),
         }
+    }
+
+    /// The drive's features on true map points as the observations of a rig bundle adjustment
+    /// with free points ([`ibc_bundle_adjust::RigBundleAdjustment`]): every keypoint whose
+    /// camera unprojects it to a ray within `max_ray_angle` (radians) of the optical axis,
+    /// of the points seen at least twice. Points are numbered from 0 in order of first sight;
+    /// the second vector gives each one's index into
+    /// [`SimulatedWorld::true_map_points`].
+    #[must_use]
+    pub fn free_point_observations(
+        &self,
+        max_ray_angle: f64,
+    ) -> (Vec<RigBaObservation>, Vec<PointId>) {
+        let min_z = max_ray_angle.cos();
+        let mut index: HashMap<PointId, usize> = HashMap::new();
+        let mut ids = Vec::new();
+        let mut observations = Vec::new();
+        for (frame, (features, point_ids)) in
+            self.log.frames.iter().zip(&self.log_point_ids).enumerate()
+        {
+            for (camera, ((image, point_ids), rig_camera)) in features
+                .images
+                .iter()
+                .zip(point_ids)
+                .zip(&self.rig.cameras)
+                .enumerate()
+            {
+                for (&pixel, id) in image.keypoints.iter().zip(point_ids) {
+                    let Some(id) = *id else { continue };
+                    let Ok(ray) = rig_camera.camera.unproject(&pixel) else {
+                        continue;
+                    };
+                    if ray.z < min_z {
+                        continue;
+                    }
+                    let next = index.len();
+                    let point = *index.entry(id).or_insert_with(|| {
+                        ids.push(id);
+                        next
+                    });
+                    observations.push(RigBaObservation {
+                        frame,
+                        camera,
+                        point,
+                        pixel,
+                    });
+                }
+            }
+        }
+        let mut count = vec![0usize; ids.len()];
+        for o in &observations {
+            count[o.point] += 1;
+        }
+        let mut renumbered = vec![usize::MAX; ids.len()];
+        let mut kept = Vec::new();
+        for (j, &id) in ids.iter().enumerate() {
+            if count[j] >= 2 {
+                renumbered[j] = kept.len();
+                kept.push(id);
+            }
+        }
+        observations.retain(|o| renumbered[o.point] != usize::MAX);
+        for o in &mut observations {
+            o.point = renumbered[o.point];
+        }
+        (observations, kept)
     }
 }
 
