@@ -379,24 +379,13 @@ impl RigRefinement {
                 excluded_observations.push(i);
             }
         }
-        let excluded = |pick: &dyn Fn(&RigObservation) -> bool| {
-            excluded_observations
-                .iter()
-                .filter(|&&i| pick(&self.observations[i]))
-                .count()
-        };
-        if let Some(camera) = used_by_camera.iter().position(|&n| n == 0) {
-            return Err(BundleAdjustError::CameraWithoutObservations {
-                camera,
-                excluded: excluded(&|o| o.camera == camera),
-            });
-        }
-        if let Some(frame) = used_by_frame.iter().position(|&n| n == 0) {
-            return Err(BundleAdjustError::FrameWithoutObservations {
-                frame,
-                excluded: excluded(&|o| o.frame == frame),
-            });
-        }
+        check_rig_coverage(
+            &used_by_camera,
+            &used_by_frame,
+            &excluded_observations,
+            &self.observations,
+            |o| (o.camera, o.frame),
+        )?;
         let mut problem = Problem::new();
         let world_from_rig = frame_params
             .iter()
@@ -519,4 +508,40 @@ impl RigRefinement {
             summary,
         })
     }
+}
+
+/// The first camera, then the first frame set, that no observation reaches once those at
+/// `excluded` (indices into `observations`) are left out, as the typed error naming it and
+/// counting its excluded observations; `by_camera` and `by_frame` count the observations
+/// kept. `camera_and_frame` reads an observation's camera and frame set.
+pub(crate) fn check_rig_coverage<O>(
+    by_camera: &[usize],
+    by_frame: &[usize],
+    excluded: &[usize],
+    observations: &[O],
+    camera_and_frame: impl Fn(&O) -> (usize, usize),
+) -> Result<()> {
+    let count = |pick: &dyn Fn((usize, usize)) -> bool| {
+        excluded
+            .iter()
+            .filter(|&&i| {
+                observations
+                    .get(i)
+                    .is_some_and(|o| pick(camera_and_frame(o)))
+            })
+            .count()
+    };
+    if let Some(camera) = by_camera.iter().position(|&n| n == 0) {
+        return Err(BundleAdjustError::CameraWithoutObservations {
+            camera,
+            excluded: count(&|(c, _)| c == camera),
+        });
+    }
+    if let Some(frame) = by_frame.iter().position(|&n| n == 0) {
+        return Err(BundleAdjustError::FrameWithoutObservations {
+            frame,
+            excluded: count(&|(_, f)| f == frame),
+        });
+    }
+    Ok(())
 }

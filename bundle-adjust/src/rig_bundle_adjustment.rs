@@ -78,7 +78,7 @@ use crate::parallel::Executor;
 use crate::problem::{ParameterBlockId, Problem};
 use crate::program::{NONE, Program};
 use crate::reduced::{ReducedLayout, TargetKind};
-use crate::rig::check_pose;
+use crate::rig::{check_pose, check_rig_coverage};
 use crate::rig_ba_cost::{
     Intrinsics, IntrinsicsCache, PointDistancePrior, RigBaReprojection, SpherePoseManifold,
 };
@@ -678,18 +678,9 @@ impl RigBundleAdjustment {
                 .filter(|&&i| pick(&self.observations[i]))
                 .count()
         };
-        if let Some(camera) = by_camera.iter().position(|&n| n == 0) {
-            return Err(BundleAdjustError::CameraWithoutObservations {
-                camera,
-                excluded: count_excluded(&|o| o.camera == camera),
-            });
-        }
-        if let Some(frame) = by_frame.iter().position(|&n| n == 0) {
-            return Err(BundleAdjustError::FrameWithoutObservations {
-                frame,
-                excluded: count_excluded(&|o| o.frame == frame),
-            });
-        }
+        check_rig_coverage(&by_camera, &by_frame, &excluded, &self.observations, |o| {
+            (o.camera, o.frame)
+        })?;
         if let Some(point) = by_point.iter().position(|&n| n < 2) {
             let excluded = count_excluded(&|o| o.point == point);
             return Err(if by_point[point] == 0 {
