@@ -4,6 +4,7 @@ pub mod calib;
 pub mod data;
 pub mod intrinsics;
 pub mod report;
+pub mod sfm;
 pub mod sim;
 
 /// The `nalgebra` the crate's API is written with (poses, points, pixels).
