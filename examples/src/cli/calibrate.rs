@@ -16,7 +16,7 @@ use super::progress::Bars;
 use super::{CalibrateArgs, CliError, Outcome, print};
 
 /// Reads the camera file: a CamOdoCal folder (or its `extrinsic.txt`), else a Kalibr camchain.
-fn read_cameras(path: &Path) -> Result<Rig, CliError> {
+pub(super) fn read_cameras(path: &Path) -> Result<Rig, CliError> {
     let error = |source| CliError::Cameras {
         path: path.to_owned(),
         source: Box::new(source),

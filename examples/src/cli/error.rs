@@ -71,6 +71,17 @@ pub enum CliError {
     /// The intrinsic calibration failed (its error names the input or the views at fault).
     #[error("{0}")]
     Intrinsics(#[from] IntrinsicsError),
+    /// The self-calibration failed.
+    #[error("self-calibration failed: {0}")]
+    SelfCalibration(#[from] ibc_pipeline::sfm::SelfCalibrationError),
+    /// `--baseline` could not be understood.
+    #[error("--baseline {value}: {reason}")]
+    Baseline {
+        /// The value given.
+        value: String,
+        /// What is wrong with it.
+        reason: String,
+    },
     /// Standard output could not be written.
     #[error("cannot write to standard output: {0}")]
     Stdout(std::io::Error),

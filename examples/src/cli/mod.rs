@@ -5,6 +5,7 @@ mod demo;
 mod error;
 mod intrinsics;
 mod progress;
+mod selfcalib;
 mod simulate;
 
 use std::io::Write as _;
@@ -86,6 +87,8 @@ pub enum Command {
     Simulate(SimulateArgs),
     /// Calibrate a rig from a map, a rig log and a camera file.
     Calibrate(CalibrateArgs),
+    /// Calibrate a rig's extrinsics from its own log, without a map (structure from motion).
+    Selfcalib(SelfCalibArgs),
     /// List the built-in scenarios.
     Scenarios,
     /// Calibrate one camera's intrinsics from chessboard corners (or simulated ones).
@@ -164,6 +167,34 @@ pub struct CalibrateArgs {
     pub hand_eye: HandEyeArg,
 }
 
+/// Options of `ibc selfcalib`.
+#[derive(Debug, Args)]
+pub struct SelfCalibArgs {
+    /// The rig-log file (`.ibclog`).
+    #[arg(long, value_name = "FILE")]
+    pub log: PathBuf,
+    /// The cameras' intrinsics: a Kalibr camchain YAML or a CamOdoCal folder (its extrinsics
+    /// are ignored).
+    #[arg(long, value_name = "FILE")]
+    pub cameras: PathBuf,
+    /// Folder for the output files.
+    #[arg(long, value_name = "DIR")]
+    pub out: PathBuf,
+    /// Ground truth (`truth.json`) to score the result against.
+    #[arg(long, value_name = "FILE")]
+    pub truth: Option<PathBuf>,
+    /// A known distance between two cameras' centres, for the metric scale when the log has
+    /// no odometry (it takes precedence over the odometry).
+    #[arg(long, value_name = "CAM_A:CAM_B=METRES")]
+    pub baseline: Option<String>,
+    /// Print the JSON report on standard output instead of the table.
+    #[arg(long)]
+    pub json: bool,
+    /// No progress bars, and no line on standard error saying where the files went.
+    #[arg(long)]
+    pub quiet: bool,
+}
+
 /// Writes `text` to standard output.
 fn print(text: &str) -> Result<(), CliError> {
     let mut out = std::io::stdout().lock();
@@ -181,6 +212,7 @@ pub fn run(cli: Cli) -> Result<Outcome, CliError> {
         Some(Command::Demo(args)) => demo::run(&args),
         Some(Command::Simulate(args)) => simulate::run(&args).map(|()| Outcome::Done),
         Some(Command::Calibrate(args)) => calibrate::run(&args),
+        Some(Command::Selfcalib(args)) => selfcalib::run(&args),
         Some(Command::Scenarios) => {
             print(&ibc_pipeline::sim::scenario_list()).map(|()| Outcome::Done)
         }

@@ -79,6 +79,19 @@ pub fn calibrated_rig(calibration: &Calibration) -> Rig {
     )
 }
 
+/// Refuses a camera name that cannot name a file (CamOdoCal names files after cameras).
+pub(crate) fn check_camera_name(name: &str) -> Result<(), OutputError> {
+    if name.is_empty()
+        || name.contains(['/', '\\', '\0'])
+        || name.chars().any(char::is_whitespace)
+        || name == "."
+        || name == ".."
+    {
+        return Err(OutputError::CameraName(name.to_owned()));
+    }
+    Ok(())
+}
+
 /// Writes every output file into `dir` (created if missing): the JSON report, the text table,
 /// the Kalibr camchain, the CamOdoCal folder and the two SVG plots (see [`output_names`]),
 /// all or nothing ([`StagedFiles`]). Returns the files written.
@@ -93,14 +106,7 @@ pub fn write_outputs(
     use output_names as n;
     let dir = dir.as_ref();
     for name in &calibration.camera_names {
-        if name.is_empty()
-            || name.contains(['/', '\\', '\0'])
-            || name.chars().any(char::is_whitespace)
-            || name == "."
-            || name == ".."
-        {
-            return Err(OutputError::CameraName(name.clone()));
-        }
+        check_camera_name(name)?;
     }
     let rig = calibrated_rig(calibration);
     let mut contents: Vec<(PathBuf, String)> = vec![

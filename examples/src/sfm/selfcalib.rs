@@ -45,6 +45,7 @@ use rayon::prelude::*;
 use super::error::SelfCalibrationError;
 use super::tracks::{TrackOptions, Tracks, build_tracks};
 use crate::NonExhaustive;
+use crate::calib::accuracy::relative_to_first;
 use crate::data::{OdometryKind, RigLog};
 
 /// Where the metric scale of a self-calibration comes from.
@@ -233,14 +234,7 @@ pub fn extrinsic_errors(
     truth: &[Isometry3<f64>],
     align_scale: bool,
 ) -> Vec<(f64, f64)> {
-    let relative = |poses: &[Isometry3<f64>]| -> Vec<Isometry3<f64>> {
-        let Some(first) = poses.first() else {
-            return Vec::new();
-        };
-        let inverse = first.inverse();
-        poses.iter().map(|p| inverse * p).collect()
-    };
-    let (e, t) = (relative(estimate), relative(truth));
+    let (e, t) = (relative_to_first(estimate), relative_to_first(truth));
     let scale = if align_scale {
         let num: f64 = e
             .iter()

@@ -1,0 +1,136 @@
+#![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)]
+//! `ibc selfcalib` through the binary (issue 17): the rig's extrinsics from its own log, the
+//! outputs of `ibc calibrate` (JSON report with `scale_source`, table, Kalibr camchain,
+//! CamOdoCal folder), and bad input as one line, a non-zero exit and nothing written.
+
+mod cli_common;
+
+use cli_common::{entries, ibc, scenario_file, stderr, stdout};
+use ibc_camera_models::Rig;
+
+#[test]
+fn selfcalib_on_a_simulated_garage_writes_a_trustworthy_calibration() {
+    let dir = tempfile::tempdir().unwrap();
+    let world = dir.path().join("world");
+    let scenario = scenario_file(dir.path(), "garage", 0.2);
+    let o = ibc(&[
+        "simulate",
+        "--quiet",
+        "--scenario",
+        &scenario,
+        "--out",
+        world.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = dir.path().join("out");
+    let path = |name: &str| world.join(name).to_str().unwrap().to_owned();
+    let o = ibc(&[
+        "selfcalib",
+        "--quiet",
+        "--json",
+        "--log",
+        &path("log.ibclog"),
+        "--cameras",
+        &path("camchain.yaml"),
+        "--truth",
+        &path("truth.json"),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let report: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    assert_eq!(report["format"], "ibc-selfcalibration-report");
+    assert_eq!(report["scale_source"], "odometry");
+    assert_eq!(report["translation_unit"], "m");
+    assert_eq!(report["status"], "ok");
+    let cameras = report["cameras"].as_array().unwrap();
+    assert_eq!(cameras.len(), 4);
+    for c in cameras {
+        // Rotations within the issue's bar; translations in metres, the odometry's scale error
+        // (0.04 % here) included: a few millimetres on baselines of metres.
+        let rotation = c["rotation_error_deg"].as_f64().unwrap();
+        let translation = c["translation_error_m"].as_f64().unwrap();
+        assert!(rotation <= 0.003, "{c}");
+        assert!(translation <= 0.004, "{c}");
+    }
+    assert!(
+        cameras[1]["rig_from_camera_std"]["rotation_deg"][0]
+            .as_f64()
+            .unwrap()
+            > 0.0
+    );
+    let mut files = entries(&out);
+    files.sort();
+    assert_eq!(
+        files,
+        [
+            "camchain-calibrated.yaml",
+            "camodocal",
+            "report.json",
+            "report.txt"
+        ]
+    );
+    assert_eq!(entries(&out.join("camodocal")).len(), 5);
+    // The written camchain reads back with the estimated extrinsics.
+    let rig = Rig::read_kalibr(out.join("camchain-calibrated.yaml")).unwrap();
+    assert_eq!(rig.cameras.len(), 4);
+    let written: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+    assert_eq!(written, report);
+}
+
+#[test]
+fn bad_input_is_one_line_a_non_zero_exit_and_nothing_written() {
+    let dir = tempfile::tempdir().unwrap();
+    let world = dir.path().join("world");
+    let scenario = scenario_file(dir.path(), "garage", 0.05);
+    let o = ibc(&[
+        "simulate",
+        "--quiet",
+        "--scenario",
+        &scenario,
+        "--out",
+        world.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let path = |name: &str| world.join(name).to_str().unwrap().to_owned();
+    let out = dir.path().join("out");
+    let cases: [(&[&str], &str); 4] = [
+        (&["--baseline", "front:nope=2"], "no camera `nope`"),
+        (&["--baseline", "front:rear=-1"], "finite positive"),
+        (&["--baseline", "front-rear"], "CAM_A:CAM_B=METRES"),
+        (&["--truth", "/nonexistent/truth.json"], "truth"),
+    ];
+    for (extra, expected) in cases {
+        let mut args = vec!["selfcalib", "--quiet", "--log"];
+        let log = path("log.ibclog");
+        let cameras = path("camchain.yaml");
+        args.push(&log);
+        args.extend(["--cameras", &cameras, "--out", out.to_str().unwrap()]);
+        args.extend_from_slice(extra);
+        let o = ibc(&args);
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(1), "{extra:?}: {err}");
+        assert_eq!(err.trim_end().lines().count(), 1, "{extra:?}: {err}");
+        assert!(err.contains(expected), "{extra:?}: {err}");
+        assert!(
+            entries(&out).is_empty(),
+            "{extra:?} wrote {:?}",
+            entries(&out)
+        );
+    }
+    // A camera file of another rig: the count differs, named in one line.
+    let o = ibc(&[
+        "selfcalib",
+        "--quiet",
+        "--log",
+        &path("map.ibcmap"),
+        "--cameras",
+        &path("camchain.yaml"),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert_eq!(stderr(&o).trim_end().lines().count(), 1);
+    assert!(entries(&out).is_empty());
+}
