@@ -1,7 +1,8 @@
 #![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)]
-//! `ibc selfcalib` through the binary (issue 17): the rig's extrinsics from its own log, the
-//! outputs of `ibc calibrate` (JSON report with `scale_source`, table, Kalibr camchain,
-//! CamOdoCal folder), and bad input as one line, a non-zero exit and nothing written.
+//! `ibc selfcalib` and `ibc map` through the binary (issue 17): the rig's extrinsics from its
+//! own log, the outputs of `ibc calibrate` (JSON report with `scale_source`, table, Kalibr
+//! camchain, CamOdoCal folder); a map built from the log that `ibc calibrate` then calibrates
+//! against; bad input as one line, a non-zero exit and nothing written.
 
 mod cli_common;
 
@@ -9,7 +10,7 @@ use cli_common::{entries, ibc, scenario_file, stderr, stdout};
 use ibc_camera_models::Rig;
 
 #[test]
-fn selfcalib_on_a_simulated_garage_writes_a_trustworthy_calibration() {
+fn selfcalib_and_map_on_a_simulated_garage() {
     let dir = tempfile::tempdir().unwrap();
     let world = dir.path().join("world");
     let scenario = scenario_file(dir.path(), "garage", 0.2);
@@ -77,6 +78,57 @@ fn selfcalib_on_a_simulated_garage_writes_a_trustworthy_calibration() {
     let written: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
     assert_eq!(written, report);
+
+    // `ibc map` on the same log with the calibrated rig, then `ibc calibrate` against it.
+    let built = dir.path().join("built.ibcmap");
+    let o = ibc(&[
+        "map",
+        "--quiet",
+        "--json",
+        "--log",
+        &path("log.ibclog"),
+        "--cameras",
+        &path("camchain.yaml"),
+        "--out",
+        built.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let summary: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    assert!(summary["points"].as_u64().unwrap() > 10_000, "{summary}");
+    assert!(
+        summary["reprojection_error_px"].as_f64().unwrap() < 1.0,
+        "{summary}"
+    );
+    let calibrated = dir.path().join("calibrated");
+    let o = ibc(&[
+        "calibrate",
+        "--quiet",
+        "--json",
+        "--map",
+        built.to_str().unwrap(),
+        "--log",
+        &path("log.ibclog"),
+        "--cameras",
+        &path("camchain.yaml"),
+        "--truth",
+        &path("truth.json"),
+        "--out",
+        calibrated.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let report: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    // Camera 0 defines the rig frame (its errors are null); the others within the bars.
+    let scored: Vec<_> = report["cameras"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|c| !c["rotation_error_deg"].is_null())
+        .collect();
+    assert_eq!(scored.len(), 3, "{report}");
+    for c in scored {
+        assert!(c["rotation_error_deg"].as_f64().unwrap() <= 0.005, "{c}");
+        assert!(c["translation_error_m"].as_f64().unwrap() <= 0.001, "{c}");
+    }
 }
 
 #[test]

@@ -250,3 +250,91 @@ fn bad_input_is_a_typed_error() {
         self_calibrate(&empty, &all, &SelfCalibrationOptions::default()).expect_err("no features");
     assert!(matches!(error, SelfCalibrationError::NoFeatures), "{error}");
 }
+
+/// The survey phase and the main job on its map: the calibrated car rig drives the garage and
+/// `build_map` reconstructs it; a rig whose left and right cameras then moved 9.7 and 10 cm
+/// drives the same garage and is calibrated against the built map. Bars (issue 17): the
+/// calibration's as against the true map (0.005 deg / 1 mm at sigma 0.5 px), and the map's
+/// points within a stated error of the truth: median 2.3 cm, 90th percentile 27 cm measured
+/// (points 10-20 m from a drive without loop closure; asserted at 5 and 50 cm). The survey and
+/// the calibration drive follow the same path (two simulations of one seed with different
+/// rigs).
+#[test]
+fn a_built_map_calibrates_a_moved_rig_as_well_as_the_true_map() {
+    use ibc_pipeline::calib::{CalibrationOptions, calibrate};
+    use ibc_pipeline::sfm::build_map;
+    let survey = world("garage", 0.2, None);
+    let built =
+        build_map(&survey.log, &survey.rig, &SelfCalibrationOptions::default()).expect("map");
+    // The map's frame is camera 0's at the first posed frame.
+    let first = built
+        .world_from_rig
+        .iter()
+        .position(Option::is_some)
+        .expect("a posed frame");
+    let map_from_world =
+        (survey.truth.world_from_rig[first] * survey.truth.rig_from_camera[0]).inverse();
+    // Each map point's landmark: the most frequent true id among the keypoints that observe it.
+    let mut votes: Vec<std::collections::HashMap<u32, usize>> =
+        vec![Default::default(); built.map.points.len()];
+    for (image, &(frame, camera)) in built.map.images.iter().zip(&built.image_sources) {
+        for (k, id) in image.point_ids.iter().enumerate() {
+            if let (Some(id), Some(Some(truth))) = (id, survey.log_point_ids[frame][camera].get(k))
+            {
+                *votes[*id as usize].entry(*truth).or_default() += 1;
+            }
+        }
+    }
+    let mut errors: Vec<f64> = votes
+        .iter()
+        .zip(&built.map.points)
+        .filter_map(|(v, p)| {
+            let (&id, _) = v
+                .iter()
+                .max_by_key(|(id, n)| (**n, std::cmp::Reverse(**id)))?;
+            let truth = map_from_world * survey.true_map_points[id as usize];
+            Some((p - truth).norm())
+        })
+        .collect();
+    errors.sort_by(f64::total_cmp);
+    let median = errors[errors.len() / 2];
+    let p90 = errors[errors.len() * 9 / 10];
+    println!(
+        "built map: {} points, {:.1} observations per point, rms {:.3} px; point error median \
+         {:.1} mm, 90th percentile {:.1} mm",
+        built.map.points.len(),
+        built.mean_observations_per_point,
+        built.rms_px,
+        median * 1e3,
+        p90 * 1e3
+    );
+    assert!(built.map.points.len() > 10_000);
+    assert!(median <= 0.05 && p90 <= 0.5, "{median} {p90}");
+
+    let moved = world("garage-moved-cameras", 0.2, None);
+    let calibration = calibrate(
+        &built.map,
+        &moved.log,
+        &moved.map_rig,
+        &CalibrationOptions::default(),
+    )
+    .expect("calibration against the built map");
+    let against_true_map = calibrate(
+        &moved.map,
+        &moved.log,
+        &moved.map_rig,
+        &CalibrationOptions::default(),
+    )
+    .expect("calibration against the true map");
+    for (label, c) in [("built map", &calibration), ("true map", &against_true_map)] {
+        let errors = extrinsic_errors(&c.rig_from_camera, &moved.truth.rig_from_camera, false);
+        let deg = errors.iter().map(|e| e.0.to_degrees()).fold(0.0, f64::max);
+        let mm = errors.iter().map(|e| e.1 * 1e3).fold(0.0, f64::max);
+        println!("calibration against the {label}: worst {deg:.5} deg / {mm:.3} mm");
+        // The bar is the built map's; against the true map at this size (100 frames) the
+        // same calibration measured 0.0053 deg / 0.59 mm, printed for comparison.
+        if label == "built map" {
+            assert!(deg <= 0.005 && mm <= 1.0, "{label}: {deg} deg / {mm} mm");
+        }
+    }
+}

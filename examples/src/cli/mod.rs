@@ -4,6 +4,7 @@ mod calibrate;
 mod demo;
 mod error;
 mod intrinsics;
+mod map;
 mod progress;
 mod selfcalib;
 mod simulate;
@@ -89,6 +90,8 @@ pub enum Command {
     Calibrate(CalibrateArgs),
     /// Calibrate a rig's extrinsics from its own log, without a map (structure from motion).
     Selfcalib(SelfCalibArgs),
+    /// Build a map from a calibrated rig's survey log (structure from motion).
+    Map(MapArgs),
     /// List the built-in scenarios.
     Scenarios,
     /// Calibrate one camera's intrinsics from chessboard corners (or simulated ones).
@@ -195,6 +198,27 @@ pub struct SelfCalibArgs {
     pub quiet: bool,
 }
 
+/// Options of `ibc map`.
+#[derive(Debug, Args)]
+pub struct MapArgs {
+    /// The survey's rig-log file (`.ibclog`).
+    #[arg(long, value_name = "FILE")]
+    pub log: PathBuf,
+    /// The calibrated rig: a Kalibr camchain YAML or a CamOdoCal folder (intrinsics and
+    /// extrinsics are used as they are).
+    #[arg(long, value_name = "FILE")]
+    pub cameras: PathBuf,
+    /// The map file to write (`.ibcmap`), atomically.
+    #[arg(long, value_name = "FILE")]
+    pub out: PathBuf,
+    /// Print a JSON summary on standard output instead of the line.
+    #[arg(long)]
+    pub json: bool,
+    /// No progress bars.
+    #[arg(long)]
+    pub quiet: bool,
+}
+
 /// Writes `text` to standard output.
 fn print(text: &str) -> Result<(), CliError> {
     let mut out = std::io::stdout().lock();
@@ -213,6 +237,7 @@ pub fn run(cli: Cli) -> Result<Outcome, CliError> {
         Some(Command::Simulate(args)) => simulate::run(&args).map(|()| Outcome::Done),
         Some(Command::Calibrate(args)) => calibrate::run(&args),
         Some(Command::Selfcalib(args)) => selfcalib::run(&args),
+        Some(Command::Map(args)) => map::run(&args),
         Some(Command::Scenarios) => {
             print(&ibc_pipeline::sim::scenario_list()).map(|()| Outcome::Done)
         }

@@ -1,5 +1,6 @@
-//! Structure from motion on a rig's own log: feature tracks without a map, and the rig's
-//! extrinsics self-calibrated from them (TrimBot2020 D3.1 §3.3.3), composing the geometry
+//! Structure from motion on a rig's own log: feature tracks without a map, the rig's
+//! extrinsics self-calibrated from them (TrimBot2020 D3.1 §3.3.3), and the survey's map built
+//! by a calibrated rig (Heng et al. §IV-A, [`build_map`]), composing the geometry
 //! crates: relative pose and triangulation (`ibc-pnp`), rotation and translation averaging
 //! (`ibc-rig-averaging`), rig bundle adjustment with free points (`ibc-bundle-adjust`) and the
 //! metric scale from odometry (`ibc-hand-eye`).
@@ -22,10 +23,12 @@
 //! ```
 
 mod error;
+mod map;
 mod selfcalib;
 mod tracks;
 
 pub use error::SelfCalibrationError;
+pub use map::{BuiltMap, build_map};
 pub use selfcalib::{
     Round, ScaleEstimate, ScaleSource, SelfCalibration, SelfCalibrationOptions, TrackStats,
     extrinsic_errors, self_calibrate,

@@ -136,17 +136,20 @@ pub enum ScaleEstimate {
     },
     /// From the known baseline.
     Baseline,
+    /// From the rig's known extrinsics (a map built by a calibrated rig).
+    KnownExtrinsics,
     /// Not known: the translations are in the unit where the averaged baselines have mean
     /// length 1 (only ratios of lengths mean anything).
     Unknown,
 }
 
 impl ScaleEstimate {
-    /// The name in reports: `"odometry"`, `"baseline"` or `"unknown"`.
+    /// The name in reports: `"odometry"`, `"baseline"`, `"known-extrinsics"` or `"unknown"`.
     pub fn name(&self) -> &'static str {
         match self {
             Self::Odometry { .. } => "odometry",
             Self::Baseline => "baseline",
+            Self::KnownExtrinsics => "known-extrinsics",
             Self::Unknown => "unknown",
         }
     }
@@ -270,7 +273,37 @@ pub fn self_calibrate<D: Descriptor>(
     cameras: &[Camera],
     options: &SelfCalibrationOptions,
 ) -> Result<SelfCalibration, SelfCalibrationError> {
+    reconstruct(log, cameras, None, options).map(|(result, _)| result)
+}
+
+/// One observation of the final reconstruction: keypoint `keypoint` of camera `camera`'s
+/// image at frame `frame` observes point `point`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct PointObservation {
+    pub frame: usize,
+    pub camera: usize,
+    pub keypoint: u32,
+    pub point: usize,
+}
+
+/// The reconstruction behind [`self_calibrate`] and [`super::build_map`]: with `known`
+/// extrinsics (`rig_from_camera` of every camera, metres), they are held, the averaged
+/// trajectory is scaled to them, and the reconstruction is metric.
+pub(crate) fn reconstruct<D: Descriptor>(
+    log: &RigLog<D>,
+    cameras: &[Camera],
+    known: Option<&[Isometry3<f64>]>,
+    options: &SelfCalibrationOptions,
+) -> Result<(SelfCalibration, Vec<PointObservation>), SelfCalibrationError> {
     check_options(options, cameras.len())?;
+    if let Some(k) = known
+        && k.len() != cameras.len()
+    {
+        return Err(SelfCalibrationError::CameraCount {
+            cameras: k.len(),
+            log: cameras.len(),
+        });
+    }
     let tracks = build_tracks(log, cameras, &options.tracks)?;
     if tracks.pairs.is_empty() {
         return Err(SelfCalibrationError::NoVerifiedPairs {
@@ -385,6 +418,30 @@ pub fn self_calibrate<D: Descriptor>(
             _ => None,
         })
         .collect();
+    if let Some(known) = known {
+        // The rig frame is camera 0's; the averaged trajectory is scaled onto the known lever
+        // arms (least squares on their lengths).
+        let first = known[0].inverse();
+        let known: Vec<Isometry3<f64>> = known.iter().map(|k| first * k).collect();
+        let (num, den) = rig_from_camera
+            .iter()
+            .zip(&known)
+            .fold((0.0, 0.0), |(n, d), (a, k)| {
+                let a = a.translation.vector.norm();
+                (n + a * k.translation.vector.norm(), d + a * a)
+            });
+        if !(den > 0.0 && num > 0.0) {
+            return Err(SelfCalibrationError::InvalidOption {
+                option: "known extrinsics",
+                reason: "the rig's cameras are all at one place: the scale is not known".into(),
+            });
+        }
+        let s = num / den;
+        for pose in world_from_rig.iter_mut().flatten() {
+            pose.translation.vector *= s;
+        }
+        rig_from_camera = known;
+    }
     let initial = rig_from_camera.clone();
 
     // Triangulation and adjustment until the extrinsics stop changing.
@@ -399,6 +456,7 @@ pub fn self_calibrate<D: Descriptor>(
     let mut covariance = vec![None; cameras.len()];
     // Each track's point from the last adjustment: the next round starts from it.
     let mut track_points: Vec<Option<Point3<f64>>> = vec![None; tracks.tracks.len()];
+    let mut final_observations = Vec::new();
     for round in 0..options.max_rounds {
         let last = round + 1 == options.max_rounds;
         let triangulated = triangulate_tracks(
@@ -458,12 +516,32 @@ pub fn self_calibrate<D: Descriptor>(
         let solved = problem
             .solve(&RigBundleAdjustmentOptions {
                 loss: options.loss,
-                scale: ScaleGauge::InitialBaseline,
-                covariance: true,
+                // Known extrinsics are held, and their lever arms fix the scale.
+                scale: if known.is_some() {
+                    ScaleGauge::Free
+                } else {
+                    ScaleGauge::InitialBaseline
+                },
+                held_extrinsics: if known.is_some() {
+                    (0..cameras.len()).collect()
+                } else {
+                    Vec::new()
+                },
+                covariance: known.is_none(),
                 solver: options.solver.clone(),
                 ..Default::default()
             })
             .map_err(SelfCalibrationError::BundleAdjustment)?;
+        final_observations = triangulated
+            .observations
+            .iter()
+            .map(|o| PointObservation {
+                frame: o.frame,
+                camera: o.camera,
+                keypoint: o.keypoint,
+                point: o.point,
+            })
+            .collect();
         let mut rotation_change = 0.0_f64;
         let mut translation_change = 0.0_f64;
         let mut within_uncertainty = true;
@@ -517,8 +595,17 @@ pub fn self_calibrate<D: Descriptor>(
             rotation_change,
             translation_change,
         });
-        if within_uncertainty
-            || (rotation_change <= options.rotation_tolerance
+        // With known extrinsics nothing moves them: the rounds stop when the observations
+        // admitted settle (fewer than 0.1 % more).
+        let settled = known.is_some()
+            && rounds.len() >= 2
+            && rounds[rounds.len() - 1].observations
+                <= rounds[rounds.len() - 2].observations
+                    + rounds[rounds.len() - 2].observations / 1000;
+        if settled
+            || (known.is_none() && within_uncertainty)
+            || (known.is_none()
+                && rotation_change <= options.rotation_tolerance
                 && translation_change <= options.translation_tolerance * lever)
         {
             converged = true;
@@ -531,6 +618,7 @@ pub fn self_calibrate<D: Descriptor>(
 
     // Scale.
     let (factor, scale) = match options.scale {
+        _ if known.is_some() => (1.0, ScaleEstimate::KnownExtrinsics),
         ScaleSource::Baseline { a, b, distance_m } => {
             let d = (rig_from_camera[a].translation.vector - rig_from_camera[b].translation.vector)
                 .norm();
@@ -572,29 +660,32 @@ pub fn self_calibrate<D: Descriptor>(
             })
         })
         .collect();
-    Ok(SelfCalibration {
-        rig_from_camera: rig_from_camera.iter().map(scaled).collect(),
-        initial_rig_from_camera: initial
-            .iter()
-            .map(|p| {
-                // The averaging's unit differs from the adjusted one only by the gauge baseline.
-                scaled(p)
-            })
-            .collect(),
-        world_from_rig: world_from_rig
-            .iter()
-            .map(|p| p.as_ref().map(scaled))
-            .collect(),
-        points: points
-            .iter()
-            .map(|p| Point3::from(p.coords * factor))
-            .collect(),
-        extrinsic_covariance,
-        scale,
-        rounds,
-        converged,
-        tracks: stats,
-    })
+    Ok((
+        SelfCalibration {
+            rig_from_camera: rig_from_camera.iter().map(scaled).collect(),
+            initial_rig_from_camera: initial
+                .iter()
+                .map(|p| {
+                    // The averaging's unit differs from the adjusted one only by the gauge baseline.
+                    scaled(p)
+                })
+                .collect(),
+            world_from_rig: world_from_rig
+                .iter()
+                .map(|p| p.as_ref().map(scaled))
+                .collect(),
+            points: points
+                .iter()
+                .map(|p| Point3::from(p.coords * factor))
+                .collect(),
+            extrinsic_covariance,
+            scale,
+            rounds,
+            converged,
+            tracks: stats,
+        },
+        final_observations,
+    ))
 }
 
 fn check_options(
@@ -647,6 +738,7 @@ fn check_options(
 /// One observation of a triangulated point.
 struct TrackObservation {
     frame: usize,
+    keypoint: u32,
     camera: usize,
     point: usize,
     pixel: Vector2<f64>,
@@ -654,6 +746,7 @@ struct TrackObservation {
 
 /// One observation of a track with its camera's pose.
 struct Ray {
+    keypoint: u32,
     camera: usize,
     frame: usize,
     camera_from_world: Isometry3<f64>,
@@ -709,6 +802,7 @@ fn triangulate_tracks<D: Descriptor>(
                 };
                 let camera_from_world = (pose * rig_from_camera[id.camera]).inverse();
                 obs.push(Ray {
+                    keypoint: k,
                     camera: id.camera,
                     frame: id.frame,
                     camera_from_world,
@@ -769,6 +863,7 @@ fn triangulate_tracks<D: Descriptor>(
         for ray in solved.rays {
             observations.push(TrackObservation {
                 frame: ray.frame,
+                keypoint: ray.keypoint,
                 camera: ray.camera,
                 point: index,
                 pixel: ray.pixel,
