@@ -338,3 +338,22 @@ fn a_built_map_calibrates_a_moved_rig_as_well_as_the_true_map() {
         }
     }
 }
+
+/// TrimBot2020's ten-camera pentagon (five stereo pairs of 82-degree pinholes) in the garden,
+/// 100 frames of its drive, against the issue's bars. **Not met yet** (opt-in, and about two
+/// minutes): measured 0.0078 deg / 0.53 mm worst camera after scale alignment (COLMAP 0.0030 /
+/// 0.51; TrimBot2020 0.5 deg / 1.9 mm), the loop still moving after 5 rounds, 15,417 candidate
+/// pairs for 1000 images and about 100 s. Run with `cargo test -p ibc-pipeline --release --test
+/// selfcalib -- --ignored pentagon --nocapture`.
+#[test]
+#[ignore = "not met yet: 0.0078 deg / 0.53 mm, not converged, ~100 s (issue 17's closing note)"]
+fn pentagon_rig_in_the_garden() {
+    let world = world("garden-pentagon", 1.0 / 3.0, None);
+    let result = self_calibrate(
+        &world.log,
+        &cameras(&world),
+        &SelfCalibrationOptions::default(),
+    )
+    .expect("self-calibration");
+    check_bars("pentagon", &world, &result);
+}

@@ -3,32 +3,15 @@
 use std::path::Path;
 use std::sync::Arc;
 
-use ibc_camera_models::Rig;
 use ibc_pipeline::calib::{Calibration, Status, calibrate_with};
 use ibc_pipeline::data::GroundTruth;
-use ibc_pipeline::data::io::{
-    DescriptorLayout, read_descriptor_layout, read_log, read_map, read_truth,
-};
+use ibc_pipeline::data::io::{read_descriptor_layout, read_map};
 use ibc_pipeline::report::{Report, output_names, text_table, write_outputs};
-use ibc_vocab_tree::{Descriptor, DescriptorKind, Vocabulary};
+use ibc_vocab_tree::{Descriptor, Vocabulary};
 
+use super::inputs::{read_cameras, read_log_checked, read_truth_arg, with_descriptor};
 use super::progress::Bars;
 use super::{CalibrateArgs, CliError, Outcome, print};
-
-/// Reads the camera file: a CamOdoCal folder (or its `extrinsic.txt`), else a Kalibr camchain.
-pub(super) fn read_cameras(path: &Path) -> Result<Rig, CliError> {
-    let error = |source| CliError::Cameras {
-        path: path.to_owned(),
-        source: Box::new(source),
-    };
-    if path.is_dir() {
-        Rig::read_camodocal_dir(path).map_err(error)
-    } else if path.file_name().is_some_and(|n| n == "extrinsic.txt") {
-        Rig::read_camodocal_dir(path.parent().unwrap_or(Path::new("."))).map_err(error)
-    } else {
-        Rig::read_kalibr(path).map_err(error)
-    }
-}
 
 /// Builds the report, writes the output files when `out` is given, prints the table (or the
 /// JSON report), says where the files went (after the table; on standard error with `json`
@@ -73,16 +56,7 @@ pub fn finish(
 /// The calibration with descriptors of type `D`.
 fn calibrate_files<D: Descriptor>(args: &CalibrateArgs, bars: &Bars) -> Result<Outcome, CliError> {
     let rig = read_cameras(&args.cameras)?;
-    let truth = args
-        .truth
-        .as_ref()
-        .map(|p| {
-            read_truth(p).map_err(|source| CliError::Data {
-                what: "ground truth",
-                source,
-            })
-        })
-        .transpose()?;
+    let truth = read_truth_arg(args.truth.as_ref())?;
     bars.step("reading the map");
     let map = read_map::<D>(&args.map).map_err(|source| CliError::Data {
         what: "map",
@@ -90,21 +64,7 @@ fn calibrate_files<D: Descriptor>(args: &CalibrateArgs, bars: &Bars) -> Result<O
     });
     bars.done();
     let map = map?;
-    bars.step("reading the log");
-    let log = read_log::<D>(&args.log).map_err(|source| CliError::Data {
-        what: "rig log",
-        source,
-    });
-    bars.done();
-    let log = log?;
-    if let (Some(truth), Some(path)) = (&truth, &args.truth) {
-        truth
-            .check_log(&log.camera_names, log.frames.len())
-            .map_err(|source| CliError::TruthMismatch {
-                path: path.clone(),
-                source,
-            })?;
-    }
+    let log = read_log_checked::<D>(&args.log, truth.as_ref().zip(args.truth.as_ref()), bars)?;
     let vocabulary = args
         .vocabulary
         .as_ref()
@@ -133,12 +93,5 @@ pub fn run(args: &CalibrateArgs) -> Result<Outcome, CliError> {
     if map != log {
         return Err(CliError::DescriptorMismatch { map, log });
     }
-    match (map.kind, map.width) {
-        (DescriptorKind::Binary, 4) => calibrate_files::<[u64; 4]>(args, &bars),
-        (DescriptorKind::Binary, 8) => calibrate_files::<[u64; 8]>(args, &bars),
-        (DescriptorKind::Float, 32) => calibrate_files::<[f32; 32]>(args, &bars),
-        (DescriptorKind::Float, 64) => calibrate_files::<[f32; 64]>(args, &bars),
-        (DescriptorKind::Float, 128) => calibrate_files::<[f32; 128]>(args, &bars),
-        _ => Err(CliError::UnsupportedDescriptor(DescriptorLayout { ..map })),
-    }
+    with_descriptor!(map, calibrate_files(args, &bars))
 }

@@ -1,23 +1,17 @@
 //! `ibc map`: the survey phase, a map built from a calibrated rig's log.
 
 use ibc_pipeline::calib::camera_matching::match_cameras;
-use ibc_pipeline::data::io::{DescriptorLayout, read_descriptor_layout, read_log, write_map};
+use ibc_pipeline::data::io::{read_descriptor_layout, write_map};
 use ibc_pipeline::sfm::{SelfCalibrationOptions, build_map};
-use ibc_vocab_tree::{Descriptor, DescriptorKind};
+use ibc_vocab_tree::Descriptor;
 
-use super::calibrate::read_cameras;
+use super::inputs::{read_cameras, read_log_checked, with_descriptor};
 use super::progress::Bars;
 use super::{CliError, MapArgs, Outcome, print};
 
 fn run_with<D: Descriptor>(args: &MapArgs, bars: &Bars) -> Result<Outcome, CliError> {
     let prior = read_cameras(&args.cameras)?;
-    bars.step("reading the log");
-    let log = read_log::<D>(&args.log).map_err(|source| CliError::Data {
-        what: "rig log",
-        source,
-    });
-    bars.done();
-    let log = log?;
+    let log = read_log_checked::<D>(&args.log, None, bars)?;
     let (rig, _) = match_cameras(&prior, &log.camera_names)?;
     bars.step("building the map (tracks, averaging, triangulation and bundle adjustment)");
     let built = build_map(&log, &rig, &SelfCalibrationOptions::default());
@@ -66,14 +60,5 @@ pub fn run(args: &MapArgs) -> Result<Outcome, CliError> {
         what: "rig log",
         source,
     })?;
-    match (layout.kind, layout.width) {
-        (DescriptorKind::Binary, 4) => run_with::<[u64; 4]>(args, &bars),
-        (DescriptorKind::Binary, 8) => run_with::<[u64; 8]>(args, &bars),
-        (DescriptorKind::Float, 32) => run_with::<[f32; 32]>(args, &bars),
-        (DescriptorKind::Float, 64) => run_with::<[f32; 64]>(args, &bars),
-        (DescriptorKind::Float, 128) => run_with::<[f32; 128]>(args, &bars),
-        _ => Err(CliError::UnsupportedDescriptor(DescriptorLayout {
-            ..layout
-        })),
-    }
+    with_descriptor!(layout, run_with(args, &bars))
 }

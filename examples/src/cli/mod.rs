@@ -3,6 +3,7 @@
 mod calibrate;
 mod demo;
 mod error;
+mod inputs;
 mod intrinsics;
 mod map;
 mod progress;

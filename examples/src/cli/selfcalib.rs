@@ -1,14 +1,14 @@
 //! `ibc selfcalib`: a rig's extrinsics from its own log, without a map.
 
 use ibc_pipeline::calib::camera_matching::match_cameras;
-use ibc_pipeline::data::io::{DescriptorLayout, read_descriptor_layout, read_log, read_truth};
+use ibc_pipeline::data::io::read_descriptor_layout;
 use ibc_pipeline::report::{
     SelfCalibrationReport, output_names, self_calibrated_rig, write_selfcalib_outputs,
 };
 use ibc_pipeline::sfm::{ScaleSource, SelfCalibrationOptions, self_calibrate};
-use ibc_vocab_tree::{Descriptor, DescriptorKind};
+use ibc_vocab_tree::Descriptor;
 
-use super::calibrate::read_cameras;
+use super::inputs::{read_cameras, read_log_checked, read_truth_arg, with_descriptor};
 use super::progress::Bars;
 use super::{CliError, Outcome, SelfCalibArgs, print};
 
@@ -50,31 +50,8 @@ fn baseline(text: &str, names: &[String]) -> Result<ScaleSource, CliError> {
 
 fn run_with<D: Descriptor>(args: &SelfCalibArgs, bars: &Bars) -> Result<Outcome, CliError> {
     let prior = read_cameras(&args.cameras)?;
-    let truth = args
-        .truth
-        .as_ref()
-        .map(|p| {
-            read_truth(p).map_err(|source| CliError::Data {
-                what: "ground truth",
-                source,
-            })
-        })
-        .transpose()?;
-    bars.step("reading the log");
-    let log = read_log::<D>(&args.log).map_err(|source| CliError::Data {
-        what: "rig log",
-        source,
-    });
-    bars.done();
-    let log = log?;
-    if let (Some(truth), Some(path)) = (&truth, &args.truth) {
-        truth
-            .check_log(&log.camera_names, log.frames.len())
-            .map_err(|source| CliError::TruthMismatch {
-                path: path.clone(),
-                source,
-            })?;
-    }
+    let truth = read_truth_arg(args.truth.as_ref())?;
+    let log = read_log_checked::<D>(&args.log, truth.as_ref().zip(args.truth.as_ref()), bars)?;
     let (rig, _) = match_cameras(&prior, &log.camera_names)?;
     let scale = match &args.baseline {
         Some(text) => baseline(text, &log.camera_names)?,
@@ -124,14 +101,5 @@ pub fn run(args: &SelfCalibArgs) -> Result<Outcome, CliError> {
         what: "rig log",
         source,
     })?;
-    match (layout.kind, layout.width) {
-        (DescriptorKind::Binary, 4) => run_with::<[u64; 4]>(args, &bars),
-        (DescriptorKind::Binary, 8) => run_with::<[u64; 8]>(args, &bars),
-        (DescriptorKind::Float, 32) => run_with::<[f32; 32]>(args, &bars),
-        (DescriptorKind::Float, 64) => run_with::<[f32; 64]>(args, &bars),
-        (DescriptorKind::Float, 128) => run_with::<[f32; 128]>(args, &bars),
-        _ => Err(CliError::UnsupportedDescriptor(DescriptorLayout {
-            ..layout
-        })),
-    }
+    with_descriptor!(layout, run_with(args, &bars))
 }

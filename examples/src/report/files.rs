@@ -109,13 +109,27 @@ pub fn write_outputs(
         check_camera_name(name)?;
     }
     let rig = calibrated_rig(calibration);
-    let mut contents: Vec<(PathBuf, String)> = vec![
+    let contents: Vec<(PathBuf, String)> = vec![
         (dir.join(n::REPORT_JSON), report.to_json() + "\n"),
         (dir.join(n::REPORT_TEXT), text_table(report)),
-        (dir.join(n::CAMCHAIN), rig.to_kalibr_string()),
         (dir.join(n::TOP_VIEW), top_view_svg(calibration)),
         (dir.join(n::ERRORS), error_histogram_svg(calibration)),
     ];
+    write_with_rig(dir, contents, &rig)
+}
+
+/// Writes `contents` and the rig's files (the Kalibr camchain and the CamOdoCal folder) into
+/// `dir`, all or nothing.
+pub(crate) fn write_with_rig(
+    dir: &Path,
+    mut contents: Vec<(PathBuf, String)>,
+    rig: &Rig,
+) -> Result<Vec<PathBuf>, OutputError> {
+    use output_names as n;
+    for c in &rig.cameras {
+        check_camera_name(&c.name)?;
+    }
+    contents.push((dir.join(n::CAMCHAIN), rig.to_kalibr_string()));
     let camodocal = dir.join(n::CAMODOCAL_DIR);
     for c in &rig.cameras {
         contents.push((

@@ -29,17 +29,13 @@
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
-use ibc_camera_models::camodocal::{
-    EXTRINSIC_FILE_NAME, calib_file_name, format_camera, format_extrinsics,
-};
 use ibc_camera_models::{Camera, CameraModel, Rig, RigCamera};
 use serde::Serialize;
 
-use super::files::{OutputError, output_names};
+use super::files::{OutputError, output_names, write_with_rig};
 use super::json::PoseJson;
 use crate::data::GroundTruth;
-use crate::data::io::StagedFiles;
-use crate::sfm::{ScaleEstimate, SelfCalibration, extrinsic_errors};
+use crate::sfm::{ScaleEstimate, SelfCalibration, TrackStats, extrinsic_errors};
 
 /// The value of [`SelfCalibrationReport::format`].
 pub const SELFCALIB_REPORT_FORMAT: &str = "ibc-selfcalibration-report";
@@ -71,23 +67,6 @@ pub struct SelfCalibCameraJson {
     /// Translation error against the truth, metres (with a truth file; after aligning the
     /// scale when it is unknown).
     pub translation_error_m: Option<f64>,
-}
-
-/// Counts of the feature tracking.
-#[derive(Clone, Debug, PartialEq, Serialize)]
-pub struct TracksJson {
-    /// Images with features.
-    pub images: usize,
-    /// Candidate pairs matched.
-    pub candidate_pairs: usize,
-    /// Verified pairs.
-    pub verified_pairs: usize,
-    /// Verified pairs between different cameras.
-    pub cross_camera_pairs: usize,
-    /// Tracks.
-    pub tracks: usize,
-    /// Tracks dropped as inconsistent.
-    pub inconsistent_tracks: usize,
 }
 
 /// One round of triangulation and adjustment.
@@ -150,7 +129,7 @@ pub struct SelfCalibrationReport {
     /// Final RMS reprojection error, pixels.
     pub reprojection_error_px: f64,
     /// Feature tracking.
-    pub tracks: TracksJson,
+    pub tracks: TrackStats,
     /// The rounds.
     pub rounds: Vec<RoundJson>,
     /// Whether the extrinsics stopped changing.
@@ -249,14 +228,7 @@ impl SelfCalibrationReport {
             points: result.points.len(),
             observations: last.map_or(0, |r| r.observations),
             reprojection_error_px: last.map_or(f64::NAN, |r| r.rms_px),
-            tracks: TracksJson {
-                images: result.tracks.images,
-                candidate_pairs: result.tracks.candidate_pairs,
-                verified_pairs: result.tracks.verified_pairs,
-                cross_camera_pairs: result.tracks.cross_camera_pairs,
-                tracks: result.tracks.tracks,
-                inconsistent_tracks: result.tracks.inconsistent_tracks,
-            },
+            tracks: result.tracks,
             rounds: result
                 .rounds
                 .iter()
@@ -392,32 +364,9 @@ pub fn write_selfcalib_outputs(
 ) -> Result<Vec<PathBuf>, OutputError> {
     use output_names as n;
     let dir = dir.as_ref();
-    for c in &rig.cameras {
-        super::files::check_camera_name(&c.name)?;
-    }
-    let mut contents: Vec<(PathBuf, String)> = vec![
+    let contents = vec![
         (dir.join(n::REPORT_JSON), report.to_json() + "\n"),
         (dir.join(n::REPORT_TEXT), report.text_table()),
-        (dir.join(n::CAMCHAIN), rig.to_kalibr_string()),
     ];
-    let camodocal = dir.join(n::CAMODOCAL_DIR);
-    for c in &rig.cameras {
-        contents.push((
-            camodocal.join(calib_file_name(&c.name)),
-            format_camera(&c.name, &c.camera),
-        ));
-    }
-    contents.push((
-        camodocal.join(EXTRINSIC_FILE_NAME),
-        format_extrinsics(
-            rig.cameras
-                .iter()
-                .map(|c| (c.name.as_str(), &c.rig_from_camera)),
-        ),
-    ));
-    let mut files = StagedFiles::new(dir)?;
-    for (path, text) in &contents {
-        files.stage(path, text.as_bytes())?;
-    }
-    Ok(files.commit()?)
+    write_with_rig(dir, contents, rig)
 }

@@ -175,7 +175,7 @@ pub struct Round {
 }
 
 /// Counts of the feature tracking.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
 pub struct TrackStats {
     /// Images with features.
     pub images: usize,
