@@ -343,7 +343,10 @@ fn a_built_map_calibrates_a_moved_rig_as_well_as_the_true_map() {
 /// 100 frames of its drive, against the issue's bars. **Not met yet** (opt-in, and about two
 /// minutes): measured 0.0078 deg / 0.53 mm worst camera after scale alignment (COLMAP 0.0030 /
 /// 0.51; TrimBot2020 0.5 deg / 1.9 mm), the loop still moving after 5 rounds, 15,417 candidate
-/// pairs for 1000 images and about 100 s. Run with `cargo test -p ibc-pipeline --release --test
+/// pairs for 1000 images and about 100 s. The errors grow with the distance from camera 0 and
+/// stay within one reported standard deviation (0.008 deg for pairs 2-4): the tracks found
+/// (143k observations of 14k points) determine no more; COLMAP's 0.0030 deg came from perfect
+/// tracks. Run with `cargo test -p ibc-pipeline --release --test
 /// selfcalib -- --ignored pentagon --nocapture`.
 #[test]
 #[ignore = "not met yet: 0.0078 deg / 0.53 mm, not converged, ~100 s (issue 17's closing note)"]
@@ -355,5 +358,20 @@ fn pentagon_rig_in_the_garden() {
         &SelfCalibrationOptions::default(),
     )
     .expect("self-calibration");
+    for (c, e) in extrinsic_errors(&result.rig_from_camera, &world.truth.rig_from_camera, true)
+        .iter()
+        .enumerate()
+    {
+        println!(
+            "pentagon camera {c} {}: {:.5} deg / {:.3} mm, std {:?}",
+            world.log.camera_names[c],
+            e.0.to_degrees(),
+            e.1 * 1e3,
+            result.extrinsic_std(c)
+        );
+    }
+    for r in &result.rounds {
+        println!("{r:?}");
+    }
     check_bars("pentagon", &world, &result);
 }
