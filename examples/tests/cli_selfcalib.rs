@@ -68,10 +68,21 @@ fn selfcalib_and_map_on_a_simulated_garage() {
             "camchain-calibrated.yaml",
             "camodocal",
             "report.json",
-            "report.txt"
+            "report.txt",
+            "top_view.svg"
         ]
     );
     assert_eq!(entries(&out.join("camodocal")).len(), 5);
+    let svg = std::fs::read_to_string(out.join("top_view.svg")).unwrap();
+    assert!(svg.starts_with("<svg") && svg.matches("<circle").count() > 1000);
+    assert!(
+        svg.contains("reconstructed points") && svg.contains("rear"),
+        "{}",
+        svg.lines()
+            .filter(|l| l.contains("<text"))
+            .collect::<Vec<_>>()
+            .join("\n")
+    );
     // The written camchain reads back with the estimated extrinsics.
     let rig = Rig::read_kalibr(out.join("camchain-calibrated.yaml")).unwrap();
     assert_eq!(rig.cameras.len(), 4);

@@ -70,12 +70,18 @@ fn run_with<D: Descriptor>(args: &SelfCalibArgs, bars: &Bars) -> Result<Outcome,
     bars.done();
     let result = result?;
     let report = SelfCalibrationReport::new(&result, &log.camera_names, &cameras, truth.as_ref());
-    write_selfcalib_outputs(&args.out, &report, &self_calibrated_rig(&rig, &result))?;
+    write_selfcalib_outputs(
+        &args.out,
+        &report,
+        &result,
+        &self_calibrated_rig(&rig, &log.camera_names, &result),
+    )?;
     let wrote = format!(
-        "wrote {} ({}, {}, {}, {}/)\n",
+        "wrote {} ({}, {}, {}, {}, {}/)\n",
         args.out.display(),
         output_names::REPORT_JSON,
         output_names::REPORT_TEXT,
+        output_names::TOP_VIEW,
         output_names::CAMCHAIN,
         output_names::CAMODOCAL_DIR
     );

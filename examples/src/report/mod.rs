@@ -19,7 +19,8 @@ pub use json::{
 };
 pub use selfcalib::{
     RoundJson, SELFCALIB_REPORT_FORMAT, SelfCalibCameraJson, SelfCalibWarning,
-    SelfCalibrationReport, StdJson, self_calibrated_rig, write_selfcalib_outputs,
+    SelfCalibrationReport, StdJson, self_calibrated_rig, self_calibration_top_view,
+    write_selfcalib_outputs,
 };
 pub use svg::{error_histogram_svg, top_view_svg};
 pub use table::text_table;

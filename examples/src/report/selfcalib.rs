@@ -30,10 +30,12 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use ibc_camera_models::{Camera, CameraModel, Rig, RigCamera};
+use nalgebra::Isometry3;
 use serde::Serialize;
 
 use super::files::{OutputError, output_names, write_with_rig};
 use super::json::PoseJson;
+use super::svg::{TopView, top_view};
 use crate::data::GroundTruth;
 use crate::sfm::{ScaleEstimate, SelfCalibration, TrackStats, extrinsic_errors};
 
@@ -333,16 +335,17 @@ impl SelfCalibrationReport {
     }
 }
 
-/// The self-calibrated rig: the camera file's cameras (names, intrinsics, Kalibr metadata) with
-/// the estimated extrinsics.
-pub fn self_calibrated_rig(prior: &Rig, result: &SelfCalibration) -> Rig {
+/// The self-calibrated rig: the log's camera names, the camera file's cameras (intrinsics,
+/// Kalibr metadata; in the log's order) with the estimated extrinsics.
+pub fn self_calibrated_rig(prior: &Rig, names: &[String], result: &SelfCalibration) -> Rig {
     Rig::new(
         prior
             .cameras
             .iter()
+            .zip(names)
             .zip(&result.rig_from_camera)
-            .map(|(p, pose)| {
-                let mut rc = RigCamera::new(p.name.clone(), p.camera.clone(), *pose);
+            .map(|((p, name), pose)| {
+                let mut rc = RigCamera::new(name.clone(), p.camera.clone(), *pose);
                 rc.topic.clone_from(&p.topic);
                 rc.overlaps.clone_from(&p.overlaps);
                 rc.timeshift_cam_imu_s = p.timeshift_cam_imu_s;
@@ -352,14 +355,15 @@ pub fn self_calibrated_rig(prior: &Rig, result: &SelfCalibration) -> Rig {
     )
 }
 
-/// Writes the report (JSON and text), the Kalibr camchain and the CamOdoCal folder of a
-/// self-calibration into `dir`, all or nothing. Returns the files written.
+/// Writes the report (JSON and text), the top view, the Kalibr camchain and the CamOdoCal
+/// folder of a self-calibration into `dir`, all or nothing. Returns the files written.
 ///
 /// # Errors
 /// [`OutputError`]; nothing is left behind then.
 pub fn write_selfcalib_outputs(
     dir: impl AsRef<Path>,
     report: &SelfCalibrationReport,
+    result: &SelfCalibration,
     rig: &Rig,
 ) -> Result<Vec<PathBuf>, OutputError> {
     use output_names as n;
@@ -367,6 +371,26 @@ pub fn write_selfcalib_outputs(
     let contents = vec![
         (dir.join(n::REPORT_JSON), report.to_json() + "\n"),
         (dir.join(n::REPORT_TEXT), report.text_table()),
+        (
+            dir.join(n::TOP_VIEW),
+            self_calibration_top_view(result, rig),
+        ),
     ];
     write_with_rig(dir, contents, rig)
+}
+
+/// The top view of a self-calibration: the reconstruction's points, the rig trajectory, the
+/// camera centres, and the rig seen from above (the layout of [`super::top_view_svg`]).
+pub fn self_calibration_top_view(result: &SelfCalibration, rig: &Rig) -> String {
+    let poses: Vec<Isometry3<f64>> = result.world_from_rig.iter().flatten().copied().collect();
+    let names: Vec<String> = rig.cameras.iter().map(|c| c.name.clone()).collect();
+    top_view(&TopView {
+        title: "top view of the reconstruction: points, camera centres, rig trajectory",
+        points_label: "reconstructed points",
+        points: result.points.iter().map(|p| p.coords).collect(),
+        camera_seen: vec![vec![true; result.rig_from_camera.len()]; poses.len()],
+        world_from_rig: poses,
+        rig_from_camera: &result.rig_from_camera,
+        camera_names: &names,
+    })
 }

@@ -23,36 +23,71 @@ fn bounds(points: impl Iterator<Item = Vector2<f64>>) -> Option<(Vector2<f64>, V
     })
 }
 
+/// What a top view draws: the points, each rig pose, which cameras to draw a centre for at
+/// each pose, and the rig.
+pub(crate) struct TopView<'a> {
+    /// The panel's title.
+    pub title: &'a str,
+    /// The legend's name of the points.
+    pub points_label: &'a str,
+    /// The points (world frame).
+    pub points: Vec<Vector3<f64>>,
+    /// `world_from_rig` of each pose drawn.
+    pub world_from_rig: Vec<Isometry3<f64>>,
+    /// For each pose, whether each camera's centre is drawn.
+    pub camera_seen: Vec<Vec<bool>>,
+    /// The extrinsics.
+    pub rig_from_camera: &'a [Isometry3<f64>],
+    /// The camera names.
+    pub camera_names: &'a [String],
+}
+
 /// The top view (see the module docs).
 pub fn top_view_svg(calibration: &Calibration) -> String {
+    top_view(&TopView {
+        title: "top view of the map: map points used, camera centres, rig trajectory",
+        points_label: "map points used",
+        points: calibration
+            .observations
+            .iter()
+            .map(|o| o.point.coords)
+            .collect(),
+        world_from_rig: calibration.refinement.world_from_rig.clone(),
+        camera_seen: calibration
+            .frame_sets
+            .iter()
+            .map(|s| s.camera_from_world.iter().map(Option::is_some).collect())
+            .collect(),
+        rig_from_camera: &calibration.rig_from_camera,
+        camera_names: &calibration.camera_names,
+    })
+}
+
+/// A top view of `view` (the layout of [`top_view_svg`]).
+pub(crate) fn top_view(view: &TopView<'_>) -> String {
     let (map_side, rig_side, left, top) = (700.0, 340.0, 80.0, 50.0);
     let mut svg = Svg::new(
         left * 2.0 + map_side + rig_side + 40.0,
         top + map_side + 60.0,
     );
     let xy = |p: &Vector3<f64>| Vector2::new(p.x, p.y);
-    let trajectory: Vec<Vector2<f64>> = calibration
-        .refinement
+    let trajectory: Vec<Vector2<f64>> = view
         .world_from_rig
         .iter()
         .map(|p| xy(&p.translation.vector))
         .collect();
     let mut centres: Vec<(usize, Vector2<f64>)> = Vec::new();
-    for (s, pose) in calibration.refinement.world_from_rig.iter().enumerate() {
-        for (c, e) in calibration.rig_from_camera.iter().enumerate() {
-            if calibration.frame_sets[s].camera_from_world[c].is_some() {
+    for (pose, seen) in view.world_from_rig.iter().zip(&view.camera_seen) {
+        for (c, e) in view.rig_from_camera.iter().enumerate() {
+            if seen.get(c).copied().unwrap_or(false) {
                 centres.push((c, xy(&(pose * e).translation.vector)));
             }
         }
     }
-    let mut points: Vec<Vector2<f64>> = calibration
-        .observations
-        .iter()
-        .map(|o| xy(&o.point.coords))
-        .collect();
+    let mut points: Vec<Vector2<f64>> = view.points.iter().map(xy).collect();
     points.sort_by(|a, b| a.x.total_cmp(&b.x).then(a.y.total_cmp(&b.y)));
     points.dedup();
-    // The panel spans the map points used, the trajectory and the camera centres.
+    // The panel spans the points, the trajectory and the camera centres.
     let (lo, hi) = bounds(
         trajectory
             .iter()
@@ -62,12 +97,7 @@ pub fn top_view_svg(calibration: &Calibration) -> String {
     )
     .unwrap_or((Vector2::zeros(), Vector2::repeat(1.0)));
     let axes = Axes::equal(Vector2::new(left, top), map_side, lo, hi);
-    svg.text(
-        Vector2::new(left, top - 16.0),
-        "start",
-        "#000",
-        "top view of the map: map points used, camera centres, rig trajectory",
-    );
+    svg.text(Vector2::new(left, top - 16.0), "start", "#000", view.title);
     axes.draw(&mut svg, "x [m] (map frame)", "y [m] (map frame)");
     let step = points.len().div_ceil(MAX_POINTS_DRAWN).max(1);
     for p in points.iter().step_by(step).filter(|p| axes.contains(**p)) {
@@ -78,15 +108,15 @@ pub fn top_view_svg(calibration: &Calibration) -> String {
     }
     let mapped: Vec<Vector2<f64>> = trajectory.iter().map(|p| axes.map(*p)).collect();
     svg.polyline(&mapped, "#000", 1.0);
-    let mut entries = vec![(Mark::Dot, "#9a9a9a", "map points used".to_owned())];
-    for (c, name) in calibration.camera_names.iter().enumerate() {
+    let mut entries = vec![(Mark::Dot, "#9a9a9a", view.points_label.to_owned())];
+    for (c, name) in view.camera_names.iter().enumerate() {
         entries.push((Mark::Dot, colour(c), format!("camera `{name}` centres")));
     }
     entries.push((Mark::Line, "#000", "rig trajectory".to_owned()));
     legend(&mut svg, &axes, &entries);
     draw_rig(
         &mut svg,
-        calibration,
+        view,
         Vector2::new(2.0 * left + map_side + 20.0, top),
         rig_side,
     );
@@ -94,7 +124,7 @@ pub fn top_view_svg(calibration: &Calibration) -> String {
 }
 
 /// The estimated rig seen from above (see the module docs).
-fn draw_rig(svg: &mut Svg, calibration: &Calibration, origin: Vector2<f64>, side: f64) {
+fn draw_rig(svg: &mut Svg, view: &TopView<'_>, origin: Vector2<f64>, side: f64) {
     svg.text(
         origin - Vector2::new(0.0, 16.0),
         "start",
@@ -102,8 +132,7 @@ fn draw_rig(svg: &mut Svg, calibration: &Calibration, origin: Vector2<f64>, side
         "estimated rig, seen from above",
     );
     // The map's up direction in the rig frame, averaged over the rig poses.
-    let up = calibration
-        .refinement
+    let up = view
         .world_from_rig
         .iter()
         .map(|p: &Isometry3<f64>| p.rotation.inverse() * Vector3::z())
@@ -113,7 +142,10 @@ fn draw_rig(svg: &mut Svg, calibration: &Calibration, origin: Vector2<f64>, side
     } else {
         -Vector3::y()
     };
-    let axis0 = calibration.rig_from_camera[0].rotation * Vector3::z();
+    let Some(first) = view.rig_from_camera.first() else {
+        return;
+    };
+    let axis0 = first.rotation * Vector3::z();
     let mut forward = axis0 - up * up.dot(&axis0);
     if forward.norm() < 1e-6 {
         forward = Vector3::x() - up * up.x;
@@ -121,7 +153,7 @@ fn draw_rig(svg: &mut Svg, calibration: &Calibration, origin: Vector2<f64>, side
     let forward = forward.normalize();
     let left = up.cross(&forward);
     let plane = |v: &Vector3<f64>| Vector2::new(-v.dot(&left), v.dot(&forward));
-    let centres: Vec<Vector2<f64>> = calibration
+    let centres: Vec<Vector2<f64>> = view
         .rig_from_camera
         .iter()
         .map(|e| plane(&e.translation.vector))
@@ -135,17 +167,19 @@ fn draw_rig(svg: &mut Svg, calibration: &Calibration, origin: Vector2<f64>, side
         hi + Vector2::repeat(0.4 * span),
     );
     axes.draw(svg, "to the right of camera 0 [m]", "ahead of camera 0 [m]");
-    for (c, (e, p)) in calibration.rig_from_camera.iter().zip(&centres).enumerate() {
+    for (c, (e, p)) in view.rig_from_camera.iter().zip(&centres).enumerate() {
         let axis = plane(&(e.rotation * Vector3::z()));
         let tip = p + axis * (0.25 * span);
         svg.line(axes.map(*p), axes.map(tip), colour(c), 2.0);
         svg.circle(axes.map(*p), 4.0, colour(c));
-        svg.text(
-            axes.map(*p) + Vector2::new(6.0, -6.0),
-            "start",
-            colour(c),
-            &calibration.camera_names[c],
-        );
+        if let Some(name) = view.camera_names.get(c) {
+            svg.text(
+                axes.map(*p) + Vector2::new(6.0, -6.0),
+                "start",
+                colour(c),
+                name,
+            );
+        }
     }
     svg.text(
         Vector2::new(origin.x + side / 2.0, origin.y + side + 56.0),
