@@ -375,3 +375,31 @@ fn pentagon_rig_in_the_garden() {
     }
     check_bars("pentagon", &world, &result);
 }
+
+/// A handheld rig of three fisheyes with a 6-DoF pose tracker, 100 frames: the metric scale
+/// from the tracker by Daniilidis's rotation and the linear scale-aware least squares. The
+/// issue's 0.1 % is for wheel odometry (met on the garage: 0.044 %); here 0.24 % was measured,
+/// asserted within 0.5 % (a wrong lever-arm term or rotation would be off by percents).
+#[test]
+fn handheld_rig_with_6dof_odometry_gets_the_metric_scale() {
+    let world = world("handheld-6dof", 1.0 / 3.0, None);
+    let result = self_calibrate(
+        &world.log,
+        &cameras(&world),
+        &SelfCalibrationOptions::default(),
+    )
+    .expect("self-calibration");
+    let errors = extrinsic_errors(&result.rig_from_camera, &world.truth.rig_from_camera, true);
+    let factor = alignment_scale(&result, &world);
+    println!(
+        "handheld: {:?}; scale {:?}, alignment factor {factor:.6}; {:?}",
+        errors
+            .iter()
+            .map(|e| (e.0.to_degrees(), e.1 * 1e3))
+            .collect::<Vec<_>>(),
+        result.scale,
+        result.tracks
+    );
+    assert!(matches!(result.scale, ScaleEstimate::Odometry { .. }));
+    assert!((factor - 1.0).abs() <= 5e-3, "scale off by {factor}");
+}
