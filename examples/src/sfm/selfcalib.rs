@@ -663,13 +663,9 @@ pub(crate) fn reconstruct<D: Descriptor>(
     Ok((
         SelfCalibration {
             rig_from_camera: rig_from_camera.iter().map(scaled).collect(),
-            initial_rig_from_camera: initial
-                .iter()
-                .map(|p| {
-                    // The averaging's unit differs from the adjusted one only by the gauge baseline.
-                    scaled(p)
-                })
-                .collect(),
+            // The first round held the averaging's baseline (the gauge), so its unit is the
+            // adjusted one.
+            initial_rig_from_camera: initial.iter().map(scaled).collect(),
             world_from_rig: world_from_rig
                 .iter()
                 .map(|p| p.as_ref().map(scaled))
