@@ -1,5 +1,5 @@
 //! Where every block product of the Schur elimination lands in the reduced system, computed
-//! once per solve so the per-iteration loops only add at precomputed addresses.
+//! once per solve so the per-iteration loops only add at known addresses.
 //!
 //! Three targets:
 //! - dense: the lower triangle of the reduced matrix S, column-major `n × n`;
@@ -7,8 +7,12 @@
 //!   sparse factorization;
 //! - implicit: the blocks of C = F_ᵀF (the reduced blocks' own normal equations) followed by
 //!   the diagonal blocks of S (the Schur-Jacobi preconditioner), for conjugate gradients.
-
-use std::collections::HashMap;
+//!
+//! The addresses of a residual's own products are listed per residual; those of a chunk's
+//! products V_p V_qᵀ (as many as the pairs of the chunk's reduced blocks, ~4,400 per point in
+//! a rig bundle adjustment) are not: the elimination walks a chunk column by column and finds
+//! each block in its column of the stored structure ([`ColumnCursor`]), so the layout's size
+//! and build time follow the number of stored blocks, not the number of updates.
 
 use crate::program::{NONE, Program};
 
@@ -39,6 +43,21 @@ pub(crate) struct BlockEntry {
     pub addr: usize,
 }
 
+/// A chunk residual's product Jᵀ_row J_col (direct targets), applied to S with its chunk's
+/// products V_p V_qᵀ.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct ChunkPair {
+    /// Reduced block of the column.
+    pub col: u32,
+    /// Reduced block of the row.
+    pub row: u32,
+    /// Offsets of the row's and the column's Jacobian blocks in the Jacobian buffer.
+    pub a: usize,
+    pub b: usize,
+    /// Residual rows.
+    pub rows: u32,
+}
+
 /// The precomputed addresses.
 #[derive(Debug, Clone)]
 pub(crate) struct ReducedLayout {
@@ -50,11 +69,6 @@ pub(crate) struct ReducedLayout {
     /// Per program residual, the start of its pairs in `c_pairs` (length residuals + 1).
     pub c_start: Vec<usize>,
     pub c_pairs: Vec<CPair>,
-    /// Per chunk, the start of its addresses in `vv_addr` (length chunks + 1).
-    pub vv_start: Vec<usize>,
-    /// Addresses of the V_p V_qᵀ updates: every pair p ≥ q (index p(p+1)/2 + q) for direct
-    /// targets, only p = q for the implicit target.
-    pub vv_addr: Vec<usize>,
     /// Address of each reduced block's diagonal block of S (or of the preconditioner).
     pub diag_addr: Vec<usize>,
     /// Implicit target: address of each reduced block's diagonal block of C.
@@ -62,6 +76,51 @@ pub(crate) struct ReducedLayout {
     /// Stored blocks, sorted by (col, row): all of S's for the blocks target, C's for the
     /// implicit target.
     pub blocks: Vec<BlockEntry>,
+    /// Start of each column's blocks in `blocks` (length reduced blocks + 1; blocks and
+    /// implicit targets).
+    pub col_start: Vec<usize>,
+    /// Offset of each reduced block in the reduced vector (dense target).
+    offsets: Vec<usize>,
+    /// Direct targets: the products of each chunk's residuals, sorted by (column, row) within
+    /// a chunk (residual order within a block), and the start of each chunk's (length chunks
+    /// + 1).
+    pub chunk_pairs: Vec<ChunkPair>,
+    pub chunk_pair_start: Vec<usize>,
+}
+
+/// The addresses of the blocks (p, q) of one column q of the target, for rows p ≥ q asked in
+/// ascending order (a chunk's reduced blocks are sorted): each is found from the previous
+/// one, most often at the next stored block.
+pub(crate) enum ColumnCursor<'a> {
+    /// Dense target: `offsets[p] + col`, `col` the column's offset times the leading
+    /// dimension.
+    Dense { offsets: &'a [usize], col: usize },
+    /// Blocks target: the column's stored blocks (rows ascending) and the next one.
+    Blocks {
+        blocks: &'a [BlockEntry],
+        next: usize,
+    },
+}
+
+impl ColumnCursor<'_> {
+    /// The address of block (`row`, column). `row` must be a stored block of the column,
+    /// above the previous one asked.
+    #[inline(always)]
+    pub(crate) fn addr(&mut self, row: u32) -> usize {
+        match self {
+            ColumnCursor::Dense { offsets, col } => offsets[row as usize] + *col,
+            ColumnCursor::Blocks { blocks, next } => {
+                let mut k = *next;
+                if blocks.get(k).is_none_or(|b| b.row != row) {
+                    k += blocks[k..].partition_point(|b| b.row < row);
+                }
+                let b = blocks[k];
+                debug_assert_eq!(b.row, row, "a chunk pair without a stored block");
+                *next = k + 1;
+                b.addr
+            }
+        }
+    }
 }
 
 impl ReducedLayout {
@@ -79,6 +138,31 @@ impl ReducedLayout {
     #[inline(always)]
     pub(crate) fn full_pairs(&self) -> bool {
         self.kind != TargetKind::Implicit
+    }
+
+    /// The blocks of column `col` of a direct target ([`Self::full_pairs`]).
+    #[inline(always)]
+    pub(crate) fn column(&self, col: u32) -> ColumnCursor<'_> {
+        let col = col as usize;
+        if self.kind == TargetKind::Dense {
+            ColumnCursor::Dense {
+                offsets: &self.offsets,
+                col: self.offsets[col] * self.n,
+            }
+        } else {
+            ColumnCursor::Blocks {
+                blocks: &self.blocks[self.col_start[col]..self.col_start[col + 1]],
+                next: 0,
+            }
+        }
+    }
+
+    /// The address of stored block (`row`, `col`), `row ≥ col` (blocks and implicit targets).
+    fn find(&self, row: u32, col: u32) -> usize {
+        let column = &self.blocks[self.col_start[col as usize]..self.col_start[col as usize + 1]];
+        let k = column.partition_point(|b| b.row < row);
+        debug_assert_eq!(column[k].row, row, "a pair without a stored block");
+        column[k].addr
     }
 
     pub(crate) fn new(program: &Program, kind: TargetKind) -> Self {
@@ -104,114 +188,189 @@ impl ReducedLayout {
             }
         }
         c_start.push(raw_c.len());
-        // Chunk pairs.
-        let full = kind != TargetKind::Implicit;
-        let mut vv_start = Vec::with_capacity(program.chunks.len() + 1);
-        let mut raw_vv: Vec<(u32, u32)> = Vec::new();
-        for c in &program.chunks {
-            vv_start.push(raw_vv.len());
-            let fs = &program.chunk_f[c.f.clone()];
-            for (p, &fp) in fs.iter().enumerate() {
-                if full {
-                    for &fq in &fs[..=p] {
-                        raw_vv.push((fp, fq));
-                    }
-                } else {
-                    raw_vv.push((fp, fp));
-                }
-            }
-        }
-        vv_start.push(raw_vv.len());
+        let (chunk_pairs, chunk_pair_start) = if kind == TargetKind::Implicit {
+            (Vec::new(), Vec::new())
+        } else {
+            chunk_pairs(program, &c_start, &raw_c)
+        };
 
         let off = &program.f_offset;
-        let size = |a: u32| off[a as usize + 1] - off[a as usize];
-        match kind {
-            TargetKind::Dense => {
-                let addr = |a: u32, b: u32| off[a as usize] + off[b as usize] * n;
-                Self {
-                    kind,
-                    n,
-                    len: n * n,
-                    c_start,
-                    c_pairs: raw_c
-                        .iter()
-                        .map(|&(sa, sb, fa, fb)| CPair {
-                            row_slot: sa,
-                            col_slot: sb,
-                            addr: addr(fa, fb),
-                        })
-                        .collect(),
-                    vv_start,
-                    vv_addr: raw_vv.iter().map(|&(a, b)| addr(a, b)).collect(),
-                    diag_addr: (0..nf as u32).map(|a| addr(a, a)).collect(),
-                    c_diag_addr: Vec::new(),
-                    blocks: Vec::new(),
-                }
-            }
-            TargetKind::Blocks | TargetKind::Implicit => {
-                // Stored blocks: S's (residual and chunk pairs) or C's (residual pairs).
-                let mut keys: Vec<(u32, u32)> = raw_c.iter().map(|&(_, _, a, b)| (b, a)).collect();
-                keys.extend((0..nf as u32).map(|a| (a, a)));
-                if kind == TargetKind::Blocks {
-                    keys.extend(raw_vv.iter().map(|&(a, b)| (b, a)));
-                }
-                keys.sort_unstable();
-                keys.dedup();
-                let mut index = HashMap::with_capacity(keys.len());
-                let mut blocks = Vec::with_capacity(keys.len());
-                let mut len = 0usize;
-                for &(col, row) in &keys {
-                    index.insert((row, col), len);
-                    blocks.push(BlockEntry {
-                        row,
-                        col,
-                        addr: len,
-                    });
-                    len += size(row) * size(col);
-                }
-                let c_pairs = raw_c
+        if kind == TargetKind::Dense {
+            let addr = |a: u32, b: u32| off[a as usize] + off[b as usize] * n;
+            return Self {
+                kind,
+                n,
+                len: n * n,
+                c_start,
+                c_pairs: raw_c
                     .iter()
                     .map(|&(sa, sb, fa, fb)| CPair {
                         row_slot: sa,
                         col_slot: sb,
-                        addr: index[&(fa, fb)],
+                        addr: addr(fa, fb),
                     })
-                    .collect();
-                let c_diag: Vec<usize> = (0..nf as u32).map(|a| index[&(a, a)]).collect();
-                if kind == TargetKind::Blocks {
-                    Self {
-                        kind,
-                        n,
-                        len,
-                        c_start,
-                        c_pairs,
-                        vv_start,
-                        vv_addr: raw_vv.iter().map(|k| index[k]).collect(),
-                        diag_addr: c_diag,
-                        c_diag_addr: Vec::new(),
-                        blocks,
-                    }
-                } else {
-                    // Preconditioner blocks follow C's blocks.
-                    let mut diag_addr = Vec::with_capacity(nf);
-                    for a in 0..nf as u32 {
-                        diag_addr.push(len);
-                        len += size(a) * size(a);
-                    }
-                    Self {
-                        kind,
-                        n,
-                        len,
-                        c_start,
-                        c_pairs,
-                        vv_start,
-                        vv_addr: raw_vv.iter().map(|&(a, _)| diag_addr[a as usize]).collect(),
-                        diag_addr,
-                        c_diag_addr: c_diag,
-                        blocks,
-                    }
+                    .collect(),
+                diag_addr: (0..nf as u32).map(|a| addr(a, a)).collect(),
+                c_diag_addr: Vec::new(),
+                blocks: Vec::new(),
+                col_start: Vec::new(),
+                offsets: off.clone(),
+                chunk_pairs,
+                chunk_pair_start,
+            };
+        }
+        // Stored blocks: S's (residual and chunk pairs) or C's (residual pairs), column by
+        // column, rows ascending.
+        let size = |a: u32| off[a as usize + 1] - off[a as usize];
+        let mut blocks = Vec::new();
+        let mut col_start = Vec::with_capacity(nf + 1);
+        let mut len = 0usize;
+        for_each_column(program, kind == TargetKind::Blocks, |col, rows| {
+            col_start.push(blocks.len());
+            for &row in rows {
+                blocks.push(BlockEntry {
+                    row,
+                    col,
+                    addr: len,
+                });
+                len += size(row) * size(col);
+            }
+        });
+        col_start.push(blocks.len());
+        let mut layout = Self {
+            kind,
+            n,
+            len,
+            c_start,
+            c_pairs: Vec::new(),
+            diag_addr: Vec::new(),
+            c_diag_addr: Vec::new(),
+            blocks,
+            col_start,
+            offsets: Vec::new(),
+            chunk_pairs,
+            chunk_pair_start,
+        };
+        layout.c_pairs = raw_c
+            .iter()
+            .map(|&(sa, sb, fa, fb)| CPair {
+                row_slot: sa,
+                col_slot: sb,
+                addr: layout.find(fa, fb),
+            })
+            .collect();
+        let c_diag: Vec<usize> = (0..nf as u32).map(|a| layout.find(a, a)).collect();
+        if kind == TargetKind::Blocks {
+            layout.diag_addr = c_diag;
+        } else {
+            // Preconditioner blocks follow C's blocks.
+            let mut diag_addr = Vec::with_capacity(nf);
+            for a in 0..nf as u32 {
+                diag_addr.push(layout.len);
+                layout.len += size(a) * size(a);
+            }
+            layout.diag_addr = diag_addr;
+            layout.c_diag_addr = c_diag;
+        }
+        layout
+    }
+}
+
+/// The residual pairs `raw_c` (slots and reduced blocks, from `c_start` per residual) of
+/// every chunk, as [`ChunkPair`]s sorted by (column, row) within a chunk (stable, so in
+/// residual order within a block), with the start of each chunk's.
+fn chunk_pairs(
+    program: &Program,
+    c_start: &[usize],
+    raw_c: &[(u16, u16, u32, u32)],
+) -> (Vec<ChunkPair>, Vec<usize>) {
+    let mut pairs = Vec::with_capacity(c_start[program.n_chunk_residuals]);
+    let mut start = Vec::with_capacity(program.chunks.len() + 1);
+    for c in &program.chunks {
+        start.push(pairs.len());
+        for ri in c.res.clone() {
+            let r = &program.res[ri];
+            let slots = program.residual_slots(r);
+            for &(sa, sb, fa, fb) in &raw_c[c_start[ri]..c_start[ri + 1]] {
+                pairs.push(ChunkPair {
+                    col: fb,
+                    row: fa,
+                    a: r.jac_off + slots[sa as usize].offset as usize,
+                    b: r.jac_off + slots[sb as usize].offset as usize,
+                    rows: r.rows,
+                });
+            }
+        }
+        let last = start.len() - 1;
+        pairs[start[last]..].sort_by_key(|p| (p.col, p.row));
+    }
+    start.push(pairs.len());
+    (pairs, start)
+}
+
+/// Calls `f(col, rows)` for every column of the stored blocks in ascending order, with the
+/// column's rows ascending: the diagonal, the row blocks of every residual that has the
+/// column's block and, with `chunks`, of every chunk that has it (a chunk residual's pairs are
+/// among its chunk's, so then only the free residuals are visited). A column's rows are
+/// collected once each with a marker per row block, without listing the pairs.
+fn for_each_column(program: &Program, chunks: bool, mut f: impl FnMut(u32, &[u32])) {
+    let nf = program.f_blocks.len();
+    // Groups of reduced blocks, each sorted ascending: chunks, then residuals.
+    let mut items: Vec<u32> = Vec::new();
+    let mut ends: Vec<usize> = Vec::new();
+    if chunks {
+        for c in &program.chunks {
+            items.extend_from_slice(&program.chunk_f[c.f.clone()]);
+            ends.push(items.len());
+        }
+    }
+    let first_residual = if chunks { program.n_chunk_residuals } else { 0 };
+    for r in &program.res[first_residual..] {
+        let start = items.len();
+        items.extend(
+            program
+                .residual_slot_info(r)
+                .iter()
+                .filter(|info| info.f_index != NONE)
+                .map(|info| info.f_index),
+        );
+        items[start..].sort_unstable();
+        ends.push(items.len());
+    }
+    // Per reduced block, where it occurs: (position in `items`, end of its group).
+    let mut count = vec![0usize; nf + 1];
+    for &a in &items {
+        count[a as usize + 1] += 1;
+    }
+    for a in 0..nf {
+        count[a + 1] += count[a];
+    }
+    let mut fill = count.clone();
+    let mut occurrences = vec![(0usize, 0usize); items.len()];
+    let mut start = 0;
+    for &end in &ends {
+        for (pos, &a) in items.iter().enumerate().take(end).skip(start) {
+            occurrences[fill[a as usize]] = (pos, end);
+            fill[a as usize] += 1;
+        }
+        start = end;
+    }
+    let mut mark = vec![NONE; nf];
+    let mut rows: Vec<u32> = Vec::new();
+    for col in 0..nf {
+        let c = col as u32;
+        rows.clear();
+        rows.push(c);
+        mark[col] = c;
+        for &(pos, end) in &occurrences[count[col]..count[col + 1]] {
+            for &row in &items[pos + 1..end] {
+                if mark[row as usize] != c {
+                    mark[row as usize] = c;
+                    rows.push(row);
                 }
             }
         }
+        rows.sort_unstable();
+        f(c, &rows);
     }
 }

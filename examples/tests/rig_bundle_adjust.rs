@@ -152,7 +152,10 @@ fn points_then_intrinsics(s: &Setup) -> ((f64, f64), (f64, f64, f64)) {
         r.summary.iterations,
         r.summary.termination
     );
-    eprintln!("points free: {:?}", r.summary.times);
+    eprintln!(
+        "points free: final cost {:.17e}; {:?}",
+        r.summary.final_cost, r.summary.times
+    );
     assert!(
         r.summary.termination.is_converged(),
         "{}",
@@ -189,7 +192,10 @@ fn points_then_intrinsics(s: &Setup) -> ((f64, f64), (f64, f64, f64)) {
         "intrinsics free: worst {deg:.5} deg / {mm:.3} mm, focal {focal:.4} px; rms {:.3} -> {:.3} px; {} iterations, {}; {seconds:.2} s",
         r.initial_rms, r.final_rms, r.summary.iterations, r.summary.termination
     );
-    eprintln!("intrinsics free: {:?}", r.summary.times);
+    eprintln!(
+        "intrinsics free: final cost {:.17e}; {:?}",
+        r.summary.final_cost, r.summary.times
+    );
     assert!(
         r.summary.termination.is_converged(),
         "{}",
@@ -215,8 +221,8 @@ fn fifth_of_the_garage_points_free_meets_colmap() {
     );
     let (deg, mm) = worst_error(&s.truth_rig_from_camera, &r);
     eprintln!(
-        "fifth: worst {deg:.5} deg / {mm:.3} mm; {} iterations; {:?}",
-        r.summary.iterations, r.summary.times
+        "fifth: worst {deg:.5} deg / {mm:.3} mm; {} iterations; final cost {:.17e}; {:?}",
+        r.summary.iterations, r.summary.final_cost, r.summary.times
     );
     assert!(deg <= COLMAP_DEG && mm <= COLMAP_MM, "{deg} deg / {mm} mm");
     // The covariance at the simulator's 0.5 px: every extrinsic determined, and the largest
