@@ -354,16 +354,17 @@ impl JacobianTask<'_, '_> {
                     let k = col - n_e;
                     (&mut self.gf[k..k + cols], &mut self.cf[k..k + cols])
                 };
-                finite += finish_block::<M>(
-                    block,
-                    r,
-                    rows,
-                    cols,
-                    factor,
-                    self.scale.map(|s| &s[col..col + cols]),
-                    g,
-                    c,
-                );
+                let scale = self.scale.map(|s| &s[col..col + cols]);
+                // Two rows (a reprojection) and the block sizes of a rig bundle adjustment
+                // at compile time on the dynamic shape; the same operations either way.
+                finite += match (rows, cols) {
+                    (2, 3) => finish_block::<M>(block, r, 2, 3, factor, scale, g, c),
+                    (2, 5) => finish_block::<M>(block, r, 2, 5, factor, scale, g, c),
+                    (2, 6) => finish_block::<M>(block, r, 2, 6, factor, scale, g, c),
+                    (2, 8) => finish_block::<M>(block, r, 2, 8, factor, scale, g, c),
+                    (2, 9) => finish_block::<M>(block, r, 2, 9, factor, scale, g, c),
+                    _ => finish_block::<M>(block, r, rows, cols, factor, scale, g, c),
+                };
             }
             // Any non-finite entry makes the sum of entry × 0 a NaN.
             if !finite.is_finite() {

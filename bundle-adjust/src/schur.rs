@@ -430,8 +430,8 @@ macro_rules! with_fixed_size {
 
 /// Consecutive chunks whose products V_p V_qᵀ are applied together, block by block: each
 /// block of S is read and written once per group instead of once per chunk (in the full
-/// garage of the rig bundle adjustment, 9.3M block visits instead of 43M block updates per
-/// elimination, consecutive points being seen by nearly the same frames), and the operations
+/// garage of the rig bundle adjustment, with groups of 16, 9.3M block visits instead of 43M
+/// block updates per elimination, consecutive points being seen by nearly the same frames), and the operations
 /// of a visit run with the block in registers. At most 32 (a chunk mask is a `u32`); 32
 /// measured a few per cent faster than 16.
 const GROUP: usize = 32;
