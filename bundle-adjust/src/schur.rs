@@ -581,10 +581,9 @@ fn eliminate_range<S: Shape, M: MulAdd>(
             }
         }
         if full {
-            let e = shape.e(first.e_size);
             let chunks = start..end;
             update_group::<S, M>(
-                shape, program, layout, &mut group, chunks, jac, bufs.v, target, e,
+                shape, program, layout, &mut group, chunks, jac, bufs.v, target,
             );
         }
         start = end;
@@ -607,7 +606,6 @@ fn update_group<S: Shape, M: MulAdd>(
     jac: &[f64],
     v: &[f64],
     target: &mut [f64],
-    e: usize,
 ) {
     let Group {
         entries,
@@ -634,9 +632,15 @@ fn update_group<S: Shape, M: MulAdd>(
     let pair_start = &layout.chunk_pair_start;
     let mut next: [usize; GROUP] = [0; GROUP];
     let mut pairs_end: [usize; GROUP] = [0; GROUP];
+    // Eliminated size of each chunk; all points (e = 3) in the common case.
+    let mut e_size: [u32; GROUP] = [0; GROUP];
+    let mut points = true;
     for (g, ci) in chunks.enumerate() {
         next[g] = pair_start[ci];
         pairs_end[g] = pair_start[ci + 1];
+        let e = shape.e(program.chunks[ci].e_size);
+        e_size[g] = e as u32;
+        points &= e == 3;
     }
     let pairs = &layout.chunk_pairs;
     for (qu, &fq) in f.iter().enumerate() {
@@ -668,19 +672,23 @@ fn update_group<S: Shape, M: MulAdd>(
                 ops.push(BlockOp {
                     a: v_off[pu * GROUP + g],
                     b: v_off[qu * GROUP + g],
-                    k: e as u32,
+                    k: e_size[g],
                     v: true,
                 });
             }
             let addr = column.addr(fp);
             let ld = layout.ld(mp);
-            if e == 3 {
+            if points {
                 update_block_e3::<M>(target, addr, ld, ops, jac, v, mp, mq);
             } else {
-                update_block::<M>(target, addr, ld, ops, jac, v, mp, mq, e);
+                update_block::<M>(target, addr, ld, ops, jac, v, mp, mq);
             }
         }
     }
+    debug_assert!(
+        next == pairs_end,
+        "a residual product left out of its group"
+    );
 }
 
 /// out(m × n at `base`, leading dimension `ld`) updated by `ops` in order, column by column
@@ -697,14 +705,13 @@ fn update_block<M: MulAdd>(
     v: &[f64],
     m: usize,
     n: usize,
-    e: usize,
 ) {
     const LOCAL: usize = 16;
     if m > LOCAL {
         for op in ops {
             let k = op.k as usize;
             if op.v {
-                sub_a_bt::<M>(out, base, ld, &v[op.a..], &v[op.b..], m, n, e);
+                sub_a_bt::<M>(out, base, ld, &v[op.a..], &v[op.b..], m, n, k);
             } else {
                 add_at_b::<M>(out, base, ld, &jac[op.a..], &jac[op.b..], k, m, n);
             }
@@ -717,6 +724,7 @@ fn update_block<M: MulAdd>(
         acc[..m].copy_from_slice(col);
         for op in ops {
             if op.v {
+                let e = op.k as usize;
                 let a = &v[op.a..op.a + m * e];
                 let b = &v[op.b..op.b + n * e];
                 for k in 0..e {
@@ -781,7 +789,7 @@ fn update_block_e3<M: MulAdd>(
         (5, 9) => columns!(5, 9, [(0, 3), (3, 3), (6, 3)]),
         (8, 9) => columns!(8, 9, [(0, 3), (3, 3), (6, 3)]),
         (9, 9) => columns!(9, 9, [(0, 3), (3, 3), (6, 3)]),
-        _ => update_block::<M>(out, base, ld, ops, jac, v, m, n, 3),
+        _ => update_block::<M>(out, base, ld, ops, jac, v, m, n),
     }
 }
 
