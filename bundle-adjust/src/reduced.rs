@@ -9,10 +9,11 @@
 //!   the diagonal blocks of S (the Schur-Jacobi preconditioner), for conjugate gradients.
 //!
 //! The addresses of a residual's own products are listed per residual; those of a chunk's
-//! products V_p V_qᵀ (as many as the pairs of the chunk's reduced blocks, ~4,400 per point in
-//! a rig bundle adjustment) are not: the elimination walks a chunk column by column and finds
-//! each block in its column of the stored structure ([`ColumnCursor`]), so the layout's size
-//! and build time follow the number of stored blocks, not the number of updates.
+//! products V_p V_qᵀ (as many as the pairs of the chunk's reduced blocks, ~2,100 per point in
+//! a rig bundle adjustment) are not: the elimination walks a group of chunks column by
+//! column and finds each block in its column of the stored structure ([`ColumnCursor`]), so
+//! the layout's size and build time follow the number of stored blocks, not the number of
+//! updates.
 
 use crate::program::{NONE, Program};
 

@@ -14,7 +14,9 @@
 //! chunk's block of B for reduced block p, V_p = W_p L⁻ᵀ and y = L⁻¹ g_e:
 //! S_pq −= V_p V_qᵀ, rhs_p += V_p y, and afterwards δe = −L⁻ᵀ (y + Σ_p V_pᵀ δf_p).
 //! L, y and V are kept from the elimination for the back substitution and for the implicit
-//! products of the iterative solver.
+//! products of the iterative solver. For the direct solvers the updates of S are applied per
+//! group of consecutive chunks, block by block ([`GROUP`]), each block receiving the same
+//! operations in the same order as chunk by chunk.
 
 use crate::kernels::{
     Shape, add_a_x, add_at_b, add_at_x, cholesky, right_solve_lower_transpose, solve_lower,
@@ -431,9 +433,9 @@ macro_rules! with_fixed_size {
 /// Consecutive chunks whose products V_p V_qᵀ are applied together, block by block: each
 /// block of S is read and written once per group instead of once per chunk (in the full
 /// garage of the rig bundle adjustment, with groups of 16, 9.3M block visits instead of 43M
-/// block updates per elimination, consecutive points being seen by nearly the same frames), and the operations
-/// of a visit run with the block in registers. At most 32 (a chunk mask is a `u32`); 32
-/// measured a few per cent faster than 16.
+/// block updates per elimination, consecutive points being seen by nearly the same frames),
+/// and the operations of a visit run with the block in registers. At most 32 (a chunk mask
+/// is a `u32`); 32 measured a few per cent faster than 16.
 const GROUP: usize = 32;
 
 /// One update of a block of S inside a group: out(m × n) ± Σ_k a_k b_kᵀ over k < `k`, a
