@@ -9,11 +9,10 @@ mod cli_common;
 use cli_common::{entries, ibc, scenario_file, stderr, stdout};
 use ibc_camera_models::Rig;
 
-#[test]
-fn selfcalib_and_map_on_a_simulated_garage() {
-    let dir = tempfile::tempdir().unwrap();
-    let world = dir.path().join("world");
-    let scenario = scenario_file(dir.path(), "garage", 0.2);
+/// Simulates the garage at `scale` into `<dir>/world` and returns that folder.
+fn simulated_garage(dir: &std::path::Path, scale: f64) -> std::path::PathBuf {
+    let world = dir.join("world");
+    let scenario = scenario_file(dir, "garage", scale);
     let o = ibc(&[
         "simulate",
         "--quiet",
@@ -23,6 +22,13 @@ fn selfcalib_and_map_on_a_simulated_garage() {
         world.to_str().unwrap(),
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
+    world
+}
+
+#[test]
+fn selfcalib_and_map_on_a_simulated_garage() {
+    let dir = tempfile::tempdir().unwrap();
+    let world = simulated_garage(dir.path(), 0.2);
     let out = dir.path().join("out");
     let path = |name: &str| world.join(name).to_str().unwrap().to_owned();
     let o = ibc(&[
@@ -145,17 +151,7 @@ fn selfcalib_and_map_on_a_simulated_garage() {
 #[test]
 fn bad_input_is_one_line_a_non_zero_exit_and_nothing_written() {
     let dir = tempfile::tempdir().unwrap();
-    let world = dir.path().join("world");
-    let scenario = scenario_file(dir.path(), "garage", 0.05);
-    let o = ibc(&[
-        "simulate",
-        "--quiet",
-        "--scenario",
-        &scenario,
-        "--out",
-        world.to_str().unwrap(),
-    ]);
-    assert!(o.status.success(), "{}", stderr(&o));
+    let world = simulated_garage(dir.path(), 0.05);
     let path = |name: &str| world.join(name).to_str().unwrap().to_owned();
     let out = dir.path().join("out");
     let cases: [(&[&str], &str); 4] = [

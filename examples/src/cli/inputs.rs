@@ -4,7 +4,7 @@
 use std::path::{Path, PathBuf};
 
 use ibc_camera_models::Rig;
-use ibc_pipeline::data::io::{read_log, read_truth};
+use ibc_pipeline::data::io::{DescriptorLayout, read_descriptor_layout, read_log, read_truth};
 use ibc_pipeline::data::{GroundTruth, RigLog};
 use ibc_vocab_tree::Descriptor;
 
@@ -24,6 +24,14 @@ pub(super) fn read_cameras(path: &Path) -> Result<Rig, CliError> {
     } else {
         Rig::read_kalibr(path).map_err(error)
     }
+}
+
+/// The descriptor layout of the rig log at `path` (read from its header only).
+pub(super) fn log_layout(path: &Path) -> Result<DescriptorLayout, CliError> {
+    read_descriptor_layout(path).map_err(|source| CliError::Data {
+        what: "rig log",
+        source,
+    })
 }
 
 /// Reads the ground truth given with `--truth`, if any.

@@ -1,11 +1,11 @@
 //! `ibc map`: the survey phase, a map built from a calibrated rig's log.
 
 use ibc_pipeline::calib::camera_matching::match_cameras;
-use ibc_pipeline::data::io::{read_descriptor_layout, write_map};
+use ibc_pipeline::data::io::write_map;
 use ibc_pipeline::sfm::{SelfCalibrationOptions, build_map};
 use ibc_vocab_tree::Descriptor;
 
-use super::inputs::{read_cameras, read_log_checked, with_descriptor};
+use super::inputs::{log_layout, read_cameras, read_log_checked, with_descriptor};
 use super::progress::Bars;
 use super::{CliError, MapArgs, Outcome, print};
 
@@ -56,9 +56,6 @@ fn run_with<D: Descriptor>(args: &MapArgs, bars: &Bars) -> Result<Outcome, CliEr
 /// Runs `ibc map`.
 pub fn run(args: &MapArgs) -> Result<Outcome, CliError> {
     let bars = Bars::new(args.quiet);
-    let layout = read_descriptor_layout(&args.log).map_err(|source| CliError::Data {
-        what: "rig log",
-        source,
-    })?;
+    let layout = log_layout(&args.log)?;
     with_descriptor!(layout, run_with(args, &bars))
 }

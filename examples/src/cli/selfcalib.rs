@@ -1,14 +1,13 @@
 //! `ibc selfcalib`: a rig's extrinsics from its own log, without a map.
 
 use ibc_pipeline::calib::camera_matching::match_cameras;
-use ibc_pipeline::data::io::read_descriptor_layout;
 use ibc_pipeline::report::{
     SelfCalibrationReport, output_names, self_calibrated_rig, write_selfcalib_outputs,
 };
 use ibc_pipeline::sfm::{ScaleSource, SelfCalibrationOptions, self_calibrate};
 use ibc_vocab_tree::Descriptor;
 
-use super::inputs::{read_cameras, read_log_checked, read_truth_arg, with_descriptor};
+use super::inputs::{log_layout, read_cameras, read_log_checked, read_truth_arg, with_descriptor};
 use super::progress::Bars;
 use super::{CliError, Outcome, SelfCalibArgs, print};
 
@@ -103,9 +102,6 @@ fn run_with<D: Descriptor>(args: &SelfCalibArgs, bars: &Bars) -> Result<Outcome,
 /// Runs `ibc selfcalib`.
 pub fn run(args: &SelfCalibArgs) -> Result<Outcome, CliError> {
     let bars = Bars::new(args.quiet);
-    let layout = read_descriptor_layout(&args.log).map_err(|source| CliError::Data {
-        what: "rig log",
-        source,
-    })?;
+    let layout = log_layout(&args.log)?;
     with_descriptor!(layout, run_with(args, &bars))
 }
