@@ -989,56 +989,43 @@ impl Selection<'_> {
         );
     }
 
-    /// Four-point RANSAC within the subset, then least squares on the inliers. The
-    /// homography and its inverse.
-    fn fit_homography(&self, rng: &mut ChaCha8Rng) -> Option<HomographyPair> {
+    /// MSAC within the subset with a `K`-point `minimal` solver (given the sample's
+    /// correspondence indices) and adaptive iterations, then two refits of the best model by
+    /// `refit` on its inliers, each kept only when it lowers the cost.
+    fn select<M, const K: usize>(
+        &self,
+        rng: &mut ChaCha8Rng,
+        minimal: impl Fn([usize; K]) -> Option<M>,
+        refit: impl Fn(&[usize]) -> Option<M>,
+        error: impl Fn(&M, &Vector3<f64>, &Vector3<f64>) -> f64 + Copy,
+    ) -> Option<M> {
         let m = self.subset.len();
-        let mut best: Option<(HomographyPair, f64)> = None;
+        let mut best: Option<(M, f64)> = None;
         let mut needed = SELECTION_ITERATIONS;
         let mut iterations = 0;
-        let mut pick = [0usize; 4];
+        let mut pick = [0usize; K];
         let mut inliers = Vec::new();
         while iterations < needed.min(SELECTION_ITERATIONS) {
             iterations += 1;
             sample_distinct(rng, m, &mut pick);
-            let sa = pick.map(|k| self.a[self.subset[k]]);
-            let sb = pick.map(|k| self.b[self.subset[k]]);
-            let Some(h) = homography_mod::solve_minimal(&sa, &sb) else {
+            let Some(model) = minimal(pick.map(|k| self.subset[k])) else {
                 continue;
             };
-            let signs: i32 = (0..4)
-                .map(|k| if sb[k].dot(&(h * sa[k])) > 0.0 { 1 } else { -1 })
-                .sum();
-            let h = match signs {
-                4 => h,
-                -4 => -h,
-                _ => continue,
-            };
-            let Some(inverse) = h.try_inverse() else {
-                continue;
-            };
-            let model = (h, inverse);
             let bound = best.as_ref().map_or(f64::INFINITY, |(_, c)| *c);
-            let cost = self.msac(&model, homography_error, bound);
+            let cost = self.msac(&model, error, bound);
             if cost < bound {
-                self.collect(&model, homography_error, self.subset, &mut inliers);
-                needed = adaptive_iterations(inliers.len(), m, 4, 0.999);
+                self.collect(&model, error, self.subset, &mut inliers);
+                needed = adaptive_iterations(inliers.len(), m, K as i32, 0.999);
                 best = Some((model, cost));
             }
         }
         let (mut model, mut cost) = best?;
         for _ in 0..2 {
-            self.collect(&model, homography_error, self.subset, &mut inliers);
-            let Some(h) = homography_mod::solve_least_squares(self.a, self.b, &inliers)
-                .and_then(|h| homography_mod::normalize(&h, self.a, self.b, Some(&inliers)))
-            else {
+            self.collect(&model, error, self.subset, &mut inliers);
+            let Some(candidate) = refit(&inliers) else {
                 break;
             };
-            let Some(inverse) = h.try_inverse() else {
-                break;
-            };
-            let candidate = (h, inverse);
-            let c = self.msac(&candidate, homography_error, f64::INFINITY);
+            let c = self.msac(&candidate, error, f64::INFINITY);
             if !(c < cost) {
                 break;
             }
@@ -1047,45 +1034,41 @@ impl Selection<'_> {
         Some(model)
     }
 
+    /// Four-point RANSAC within the subset, then least squares on the inliers. The
+    /// homography and its inverse.
+    fn fit_homography(&self, rng: &mut ChaCha8Rng) -> Option<HomographyPair> {
+        let minimal = |pick: [usize; 4]| {
+            let sa = pick.map(|i| self.a[i]);
+            let sb = pick.map(|i| self.b[i]);
+            let h = homography_mod::solve_minimal(&sa, &sb)?;
+            let signs: i32 = (0..4)
+                .map(|k| if sb[k].dot(&(h * sa[k])) > 0.0 { 1 } else { -1 })
+                .sum();
+            let h = match signs {
+                4 => h,
+                -4 => -h,
+                _ => return None,
+            };
+            Some((h, h.try_inverse()?))
+        };
+        let refit = |inliers: &[usize]| {
+            let h = homography_mod::solve_least_squares(self.a, self.b, inliers)
+                .and_then(|h| homography_mod::normalize(&h, self.a, self.b, Some(inliers)))?;
+            Some((h, h.try_inverse()?))
+        };
+        self.select(rng, minimal, refit, homography_error)
+    }
+
     /// Two-point RANSAC within the subset, then least squares (Kabsch) on the inliers.
     fn fit_rotation(&self, rng: &mut ChaCha8Rng) -> Option<Matrix3<f64>> {
-        let m = self.subset.len();
-        let mut best: Option<(Matrix3<f64>, f64)> = None;
-        let mut needed = SELECTION_ITERATIONS;
-        let mut iterations = 0;
-        let mut pick = [0usize; 2];
-        let mut inliers = Vec::new();
-        while iterations < needed.min(SELECTION_ITERATIONS) {
-            iterations += 1;
-            sample_distinct(rng, m, &mut pick);
-            let [i, j] = pick.map(|k| self.subset[k]);
+        let minimal = |[i, j]: [usize; 2]| {
             let h = self.b[i] * self.a[i].transpose()
                 + self.b[j] * self.a[j].transpose()
                 + self.b[i].cross(&self.b[j]) * self.a[i].cross(&self.a[j]).transpose();
-            let Some(r) = rotation_from_correlation(&h) else {
-                continue;
-            };
-            let bound = best.as_ref().map_or(f64::INFINITY, |(_, c)| *c);
-            let cost = self.msac(&r, rotation_error, bound);
-            if cost < bound {
-                self.collect(&r, rotation_error, self.subset, &mut inliers);
-                needed = adaptive_iterations(inliers.len(), m, 2, 0.999);
-                best = Some((r, cost));
-            }
-        }
-        let (mut r, mut cost) = best?;
-        for _ in 0..2 {
-            self.collect(&r, rotation_error, self.subset, &mut inliers);
-            let Some(candidate) = kabsch(self.a, self.b, &inliers) else {
-                break;
-            };
-            let c = self.msac(&candidate, rotation_error, f64::INFINITY);
-            if !(c < cost) {
-                break;
-            }
-            (r, cost) = (candidate, c);
-        }
-        Some(r)
+            rotation_from_correlation(&h)
+        };
+        let refit = |inliers: &[usize]| kabsch(self.a, self.b, inliers);
+        self.select(rng, minimal, refit, rotation_error)
     }
 
     /// The selected rotation refit on its inliers among all correspondences.
