@@ -67,9 +67,13 @@ pub(crate) struct ReducedLayout {
     pub n: usize,
     /// Length of the target buffer.
     pub len: usize,
-    /// Per program residual, the start of its pairs in `c_pairs` (length residuals + 1).
-    pub c_start: Vec<usize>,
-    pub c_pairs: Vec<CPair>,
+    /// Per program residual, the start of its pairs (length residuals + 1), in a list of
+    /// which `c_pairs` holds the part from `c_start[c_first]` on: every residual's for the
+    /// implicit target, the free residuals' for the direct ones (a chunk residual's products
+    /// are applied with its chunk's, from `chunk_pairs`).
+    c_start: Vec<usize>,
+    c_first: usize,
+    c_pairs: Vec<CPair>,
     /// Address of each reduced block's diagonal block of S (or of the preconditioner).
     pub diag_addr: Vec<usize>,
     /// Implicit target: address of each reduced block's diagonal block of C.
@@ -135,6 +139,18 @@ impl ReducedLayout {
         }
     }
 
+    /// The products Jᵀ_a J_b of residual `ri`'s reduced arguments with their addresses: of
+    /// every residual for the implicit target, of the free residuals for the direct ones.
+    #[inline(always)]
+    pub(crate) fn residual_pairs(&self, ri: usize) -> &[CPair] {
+        debug_assert!(
+            ri >= self.c_first,
+            "the pairs of a chunk residual were not kept"
+        );
+        let base = self.c_start[self.c_first];
+        &self.c_pairs[self.c_start[ri] - base..self.c_start[ri + 1] - base]
+    }
+
     /// Whether every chunk pair is updated (direct solvers) or only the diagonal.
     #[inline(always)]
     pub(crate) fn full_pairs(&self) -> bool {
@@ -195,6 +211,13 @@ impl ReducedLayout {
             chunk_pairs(program, &c_start, &raw_c)
         };
 
+        // The direct targets keep only the free residuals' pairs.
+        let c_first = if kind == TargetKind::Implicit {
+            0
+        } else {
+            program.n_chunk_residuals
+        };
+        let kept = &raw_c[c_start[c_first]..];
         let off = &program.f_offset;
         if kind == TargetKind::Dense {
             let addr = |a: u32, b: u32| off[a as usize] + off[b as usize] * n;
@@ -203,7 +226,8 @@ impl ReducedLayout {
                 n,
                 len: n * n,
                 c_start,
-                c_pairs: raw_c
+                c_first,
+                c_pairs: kept
                     .iter()
                     .map(|&(sa, sb, fa, fb)| CPair {
                         row_slot: sa,
@@ -243,6 +267,7 @@ impl ReducedLayout {
             n,
             len,
             c_start,
+            c_first,
             c_pairs: Vec::new(),
             diag_addr: Vec::new(),
             c_diag_addr: Vec::new(),
@@ -252,7 +277,7 @@ impl ReducedLayout {
             chunk_pairs,
             chunk_pair_start,
         };
-        layout.c_pairs = raw_c
+        layout.c_pairs = kept
             .iter()
             .map(|&(sa, sb, fa, fb)| CPair {
                 row_slot: sa,

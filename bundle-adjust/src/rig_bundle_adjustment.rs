@@ -624,7 +624,27 @@ impl RigBundleAdjustment {
         let mut by_camera = vec![0usize; nc];
         let mut by_frame = vec![0usize; self.world_from_rig.len()];
         let mut by_point = vec![0usize; self.points.len()];
+        // The observations in point order (a stable counting sort of their indices), the
+        // order in which the solver visits the residual blocks: its passes then read the
+        // residual blocks and their cost functions in sequence instead of scattered over
+        // memory, and the costs are built in that order rather than permuted afterwards.
+        let mut slot = vec![0usize; self.points.len() + 1];
+        for o in &self.observations {
+            if let Some(n) = slot.get_mut(o.point + 1) {
+                *n += 1;
+            }
+        }
+        for j in 0..self.points.len() {
+            slot[j + 1] += slot[j];
+        }
+        // Scattered writes of copies, then sequential reads: cheaper than gathering.
+        let mut sorted = vec![(0usize, None::<RigBaObservation>); self.observations.len()];
         for (i, o) in self.observations.iter().enumerate() {
+            sorted[slot[o.point]] = (i, Some(*o));
+            slot[o.point] += 1;
+        }
+        for (i, o) in sorted {
+            let Some(o) = o else { continue };
             let fs = frame_sphere.filter(|(f, _)| *f == o.frame).map(|(_, m)| m);
             let cs = camera_sphere
                 .filter(|(c, _)| *c == o.camera)
@@ -649,21 +669,19 @@ impl RigBundleAdjustment {
                 frame_sphere: fs,
                 camera_sphere: cs,
             };
-            let mut tangents = vec![
+            let tangents = [
                 if fs.is_some() { 5 } else { 6 },
                 if cs.is_some() { 5 } else { 6 },
                 3,
+                free_values[o.camera].len(),
             ];
-            let mut params: Vec<&[f64]> = vec![
+            let params: [&[f64]; 4] = [
                 &frame_params[o.frame],
                 &camera_params[o.camera],
                 self.points[o.point].as_slice(),
+                &free_values[o.camera],
             ];
-            if caches[o.camera].is_some() {
-                tangents.push(free_values[o.camera].len());
-                params.push(&free_values[o.camera]);
-            }
-            if probe.evaluates(&cost, &params, &tangents) {
+            if probe.evaluates(&cost, &params[..n_args], &tangents[..n_args]) {
                 by_camera[o.camera] += 1;
                 by_frame[o.frame] += 1;
                 by_point[o.point] += 1;
@@ -672,6 +690,7 @@ impl RigBundleAdjustment {
                 excluded.push(i);
             }
         }
+        excluded.sort_unstable();
         let count_excluded = |pick: &dyn Fn(&RigBaObservation) -> bool| {
             excluded
                 .iter()
@@ -736,17 +755,19 @@ impl RigBundleAdjustment {
                 problem.set_constant(extrinsics[c], true)?;
             }
         }
-        // Residual blocks in point order, the order in which the solver visits them (grouped
-        // by eliminated point, ascending within a point: a stable sort leaves that order and
-        // so the solve unchanged), so that its passes read the residual blocks and their cost
-        // functions from memory in sequence instead of scattered over the problem.
-        costs.sort_by_key(|(o, _)| o.point);
+        // Residual blocks in point order (grouped by eliminated point, ascending within a
+        // point, as built above).
         for (o, cost) in costs {
-            let mut blocks = vec![frames[o.frame], extrinsics[o.camera], points[o.point]];
-            if let Some((k, _)) = &intrinsics[o.camera] {
-                blocks.push(*k);
-            }
-            problem.add_residual_block(cost, options.loss, &blocks)?;
+            let blocks = [
+                frames[o.frame],
+                extrinsics[o.camera],
+                points[o.point],
+                intrinsics[o.camera]
+                    .as_ref()
+                    .map_or(points[o.point], |(k, _)| *k),
+            ];
+            let n = if intrinsics[o.camera].is_some() { 4 } else { 3 };
+            problem.add_residual_block(cost, options.loss, &blocks[..n])?;
         }
         if let ScaleGauge::PointDistance {
             points: [a, b],

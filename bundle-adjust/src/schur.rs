@@ -530,7 +530,7 @@ fn eliminate_range<S: Shape, M: MulAdd>(
                 if full {
                     continue;
                 }
-                for cp in &layout.c_pairs[layout.c_start[ri]..layout.c_start[ri + 1]] {
+                for cp in layout.residual_pairs(ri) {
                     let sa = slots[cp.row_slot as usize];
                     let sb = slots[cp.col_slot as usize];
                     let fa = shape.f(sa.cols as usize);
@@ -900,7 +900,7 @@ fn free_residuals<M: MulAdd>(
         let rows = r.rows as usize;
         let jr = &jac[r.jac_off..];
         let slots = program.residual_slots(r);
-        for cp in &layout.c_pairs[layout.c_start[ri]..layout.c_start[ri + 1]] {
+        for cp in layout.residual_pairs(ri) {
             let sa = slots[cp.row_slot as usize];
             let sb = slots[cp.col_slot as usize];
             let (fa, fb) = (sa.cols as usize, sb.cols as usize);
