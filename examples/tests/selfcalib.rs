@@ -403,3 +403,52 @@ fn handheld_rig_with_6dof_odometry_gets_the_metric_scale() {
     assert!(matches!(result.scale, ScaleEstimate::Odometry { .. }));
     assert!((factor - 1.0).abs() <= 5e-3, "scale off by {factor}");
 }
+
+/// A TUM-VI-like pair of 195-degree fisheyes (512x512, f = 191 px, 10 cm apart) walked
+/// through the garage with a 6-DoF pose tracker, 100 frames: calibrated with the rays beyond
+/// 90 degrees from the optical axis (the image corners) in the adjustment, which a solver that
+/// divides by z (COLMAP, OpenCV) cannot use. Measured: 0.0018 deg / 0.60 mm with reported
+/// standard deviations 0.0038 deg / 0.46 mm (3 rounds, 107 of 86,190 observations beyond
+/// 90 degrees, metric scale 0.18 % off). The garage's 0.5 mm bar is below this pair's own
+/// uncertainty at 100 frames (f = 191 px against the car's 396: each pixel twice the angle;
+/// the full 300-frame walk gives 0.47 mm, see BENCHMARKS.md), so the translation is held to
+/// three of its standard deviations, and that deviation to under half a millimetre.
+#[test]
+fn fisheye_pair_uses_its_rays_beyond_90_degrees() {
+    let world = world("handheld-fisheye-pair", 1.0 / 3.0, None);
+    let result = self_calibrate(
+        &world.log,
+        &cameras(&world),
+        &SelfCalibrationOptions::default(),
+    )
+    .expect("self-calibration");
+    let last = result.rounds.last().expect("a round");
+    let errors = extrinsic_errors(&result.rig_from_camera, &world.truth.rig_from_camera, true);
+    let (rotation, translation) = errors[1];
+    let (sr, st) = result.extrinsic_std(1).expect("covariance");
+    let factor = alignment_scale(&result, &world);
+    println!(
+        "fisheye pair: {:.5} deg / {:.3} mm, std {:.5} deg / {:.3} mm; {} of {} observations \
+         at or beyond 90 degrees; {} rounds; scale {:?}, alignment factor {factor:.6}",
+        rotation.to_degrees(),
+        translation * 1e3,
+        sr.to_degrees(),
+        st * factor * 1e3,
+        last.wide_observations,
+        last.observations,
+        result.rounds.len(),
+        result.scale,
+    );
+    assert!(result.converged, "{:?}", result.rounds);
+    assert!(rotation.to_degrees() <= 0.003, "{rotation} rad");
+    assert!(rotation <= 3.0 * sr, "{rotation} rad against {sr}");
+    assert!(
+        translation <= 3.0 * st * factor,
+        "{translation} m against {st}"
+    );
+    assert!(st * factor <= 0.5e-3, "standard deviation {st} m");
+    assert!(matches!(result.scale, ScaleEstimate::Odometry { .. }));
+    assert!((factor - 1.0).abs() <= 5e-3, "scale off by {factor}");
+    // The corners' rim: a tenth of a per cent of the rays, but used.
+    assert!(last.wide_observations >= 50, "{last:?}");
+}

@@ -20,8 +20,9 @@
 //!   "frames": 100, "frames_posed": 100, "points": 27000, "observations": 190000,
 //!   "reprojection_error_px": {"final": 0.63},
 //!   "tracks": {"images": 400, "candidate_pairs": 4349, "verified_pairs": 4141, ...},
-//!   "rounds": [{"points": ..., "observations": ..., "outliers": ..., "rms_px": ...,
-//!               "iterations": ..., "rotation_change_deg": ..., "translation_change": ...}],
+//!   "rounds": [{"points": ..., "observations": ..., "outliers": ...,
+//!               "wide_observations": ..., "rms_px": ..., "iterations": ...,
+//!               "rotation_change_deg": ..., "translation_change": ...}],
 //!   "converged": true
 //! }
 //! ```
@@ -80,6 +81,8 @@ pub struct RoundJson {
     pub observations: usize,
     /// Observations left out as outliers.
     pub outliers: usize,
+    /// Observations whose ray is at or beyond 90 degrees from the optical axis.
+    pub wide_observations: usize,
     /// RMS reprojection error after the adjustment, pixels.
     pub rms_px: f64,
     /// Solver iterations.
@@ -168,8 +171,9 @@ impl SelfCalibrationReport {
             warnings.push(SelfCalibWarning {
                 kind: "not_converged",
                 message: format!(
-                    "the extrinsics still changed by more than a tenth of their standard \
-                     deviation after {} rounds of triangulation and adjustment",
+                    "the extrinsics still changed by more than the set fraction of their \
+                     standard deviation (default a fifth) after {} rounds of triangulation and \
+                     adjustment",
                     result.rounds.len()
                 ),
             });
@@ -238,6 +242,7 @@ impl SelfCalibrationReport {
                     points: r.points,
                     observations: r.observations,
                     outliers: r.outliers,
+                    wide_observations: r.wide_observations,
                     rms_px: r.rms_px,
                     iterations: r.iterations,
                     rotation_change_deg: r.rotation_change.to_degrees(),

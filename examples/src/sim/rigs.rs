@@ -40,11 +40,20 @@ pub enum BuiltinRig {
     /// A handheld rig: three 848x800 Kannala-Brandt fisheyes (165-degree lenses) 120 degrees
     /// apart, with a 6-DoF pose tracker mounted upside down and turned.
     Handheld,
+    /// A TUM-VI-like stereo pair: two forward-looking 512x512 Kannala-Brandt fisheyes with
+    /// 195-degree lenses, 10 cm apart, with a 6-DoF pose tracker; the image corners see rays
+    /// up to 97.5 degrees from the optical axis.
+    FisheyePair,
 }
 
 impl BuiltinRig {
     /// Every built-in rig.
-    pub const ALL: [Self; 3] = [Self::CarFisheye, Self::Pentagon, Self::Handheld];
+    pub const ALL: [Self; 4] = [
+        Self::CarFisheye,
+        Self::Pentagon,
+        Self::Handheld,
+        Self::FisheyePair,
+    ];
 
     /// Its name in scenario files.
     pub fn name(self) -> &'static str {
@@ -52,6 +61,7 @@ impl BuiltinRig {
             Self::CarFisheye => "car-fisheye",
             Self::Pentagon => "pentagon",
             Self::Handheld => "handheld",
+            Self::FisheyePair => "fisheye-pair",
         }
     }
 
@@ -70,6 +80,7 @@ impl BuiltinRig {
             Self::CarFisheye => car_fisheye(),
             Self::Pentagon => pentagon(),
             Self::Handheld => handheld(),
+            Self::FisheyePair => fisheye_pair(),
         }
     }
 }
@@ -265,6 +276,45 @@ fn handheld() -> Result<SimRig, SimError> {
         rig: named_topics(Rig::new(cameras)),
         rig_from_odometry: Isometry3::from_parts(Translation3::new(0.03, -0.02, -0.07), tracker),
         max_incidence_rad: vec![82.5f64.to_radians(); 3],
+    })
+}
+
+/// The TUM-VI-like pair: cameras `cam0` (left) and `cam1` (right), 10 cm apart, both
+/// looking forward (the rig's x-axis), with mounting errors of a fraction of a degree. The
+/// intrinsics are close to the published calibration of the TUM-VI dataset's cameras
+/// (Schubert et al., "The TUM VI Benchmark for Evaluating Visual-Inertial Odometry", IROS
+/// 2018: 512x512, f about 191 px, Kannala-Brandt), so r(90 deg) is about 297 px and the image
+/// circle of the 195-degree lens (318 px) reaches into the corners. The pose tracker sits
+/// 5 cm behind the pair, turned.
+fn fisheye_pair() -> Result<SimRig, SimError> {
+    let cams = [("cam0", 0.05, 0.0), ("cam1", -0.05, 1.0)];
+    let mut cameras = Vec::with_capacity(2);
+    for (name, y, s) in cams {
+        let params = [
+            0.0035,
+            0.0007,
+            -0.0021,
+            0.0002,
+            190.97 + 0.3 * s,
+            190.98 - 0.2 * s,
+            254.93 + 0.9 * s,
+            256.90 - 0.6 * s,
+        ];
+        let camera = kb(name, 512, 512, params)?;
+        let pose = mount(
+            Vector3::new(0.0, y, 0.0),
+            0.3 - 0.5 * s,
+            0.2 * s,
+            -0.4 + 0.6 * s,
+        );
+        cameras.push(RigCamera::new(name, camera, pose));
+    }
+    let tracker = UnitQuaternion::from_euler_angles(PI / 2.0, 0.0, -PI / 2.0)
+        * UnitQuaternion::from_euler_angles(0.01, 0.02, -0.015);
+    Ok(SimRig {
+        rig: named_topics(Rig::new(cameras)),
+        rig_from_odometry: Isometry3::from_parts(Translation3::new(-0.05, 0.01, 0.02), tracker),
+        max_incidence_rad: vec![97.5f64.to_radians(); 2],
     })
 }
 

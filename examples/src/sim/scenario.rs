@@ -142,7 +142,7 @@ struct Builtin {
     make: fn(&mut Scenario),
 }
 
-const BUILTINS: [Builtin; 9] = [
+const BUILTINS: [Builtin; 10] = [
     Builtin {
         name: "garage",
         description: "the paper's indoor setting: a car with 4 fisheyes (190 deg, 1280x960) drives a 300 m loop in a parking garage, 500 frames, wheel odometry",
@@ -199,6 +199,17 @@ const BUILTINS: [Builtin; 9] = [
         description: "a handheld rig of 3 fisheyes with a 6-DoF pose tracker, walked through the garage swinging in every axis, 300 frames",
         make: |s| {
             s.rig = RigSource::Builtin(BuiltinRig::Handheld);
+            s.trajectory.motion = Motion::Handheld;
+            s.trajectory.frames = 300;
+            s.trajectory.speed_m_s = 1.4;
+            s.odometry = OdometryKind::SixDof;
+        },
+    },
+    Builtin {
+        name: "handheld-fisheye-pair",
+        description: "a TUM-VI-like pair of 195 deg fisheyes (512x512, 10 cm apart) with a 6-DoF pose tracker, walked through the garage swinging in every axis, 300 frames",
+        make: |s| {
+            s.rig = RigSource::Builtin(BuiltinRig::FisheyePair);
             s.trajectory.motion = Motion::Handheld;
             s.trajectory.frames = 300;
             s.trajectory.speed_m_s = 1.4;
