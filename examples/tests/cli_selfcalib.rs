@@ -96,12 +96,14 @@ fn selfcalib_and_map_on_a_simulated_garage() {
         serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
     assert_eq!(written, report);
 
-    // `ibc map` on the same log with the calibrated rig, then `ibc calibrate` against it.
+    // `ibc map` on the same log with the calibrated rig (its extrinsics refined: the camera
+    // file is the truth, so they stay within a millimetre), then `ibc calibrate` against it.
     let built = dir.path().join("built.ibcmap");
     let o = ibc(&[
         "map",
         "--quiet",
         "--json",
+        "--refine-extrinsics",
         "--log",
         &path("log.ibclog"),
         "--cameras",
@@ -116,6 +118,13 @@ fn selfcalib_and_map_on_a_simulated_garage() {
         summary["reprojection_error_px"].as_f64().unwrap() < 1.0,
         "{summary}"
     );
+    assert_eq!(summary["extrinsics"], "refined", "{summary}");
+    let cameras = summary["cameras"].as_array().unwrap();
+    assert_eq!(cameras.len(), 4, "{summary}");
+    for c in cameras {
+        assert!(c["moved_mm"].as_f64().unwrap() < 1.0, "{c}");
+        assert!(c["turned_deg"].as_f64().unwrap() < 0.01, "{c}");
+    }
     let calibrated = dir.path().join("calibrated");
     let o = ibc(&[
         "calibrate",

@@ -2,7 +2,7 @@
 
 use ibc_pipeline::calib::camera_matching::match_cameras;
 use ibc_pipeline::data::io::write_map;
-use ibc_pipeline::sfm::{SelfCalibrationOptions, build_map};
+use ibc_pipeline::sfm::{MapOptions, build_map};
 use ibc_vocab_tree::Descriptor;
 
 use super::inputs::{log_layout, read_cameras, read_log_checked, with_descriptor};
@@ -14,9 +14,39 @@ fn run_with<D: Descriptor>(args: &MapArgs, bars: &Bars) -> Result<Outcome, CliEr
     let log = read_log_checked::<D>(&args.log, None, bars)?;
     let (rig, _) = match_cameras(&prior, &log.camera_names)?;
     bars.step("building the map (tracks, averaging, triangulation and bundle adjustment)");
-    let built = build_map(&log, &rig, &SelfCalibrationOptions::default());
+    let built = build_map(
+        &log,
+        &rig,
+        &MapOptions {
+            refine_extrinsics: args.refine_extrinsics,
+            ..Default::default()
+        },
+    );
     bars.done();
     let built = built?;
+    // How far each camera was found from the camera file (both relative to the first
+    // camera), with its standard deviation, when the extrinsics were refined.
+    let moved: Vec<serde_json::Value> = if args.refine_extrinsics {
+        let first = rig.cameras.first().map(|c| c.rig_from_camera.inverse());
+        rig.cameras
+            .iter()
+            .zip(&built.rig_from_camera)
+            .zip(&built.extrinsic_covariance)
+            .map(|((camera, refined), cov)| {
+                let prior = first.map_or(camera.rig_from_camera, |f| f * camera.rig_from_camera);
+                let sd = |k: usize| cov.map(|c| c[(k, k)].max(0.0).sqrt());
+                serde_json::json!({
+                    "name": camera.name,
+                    "moved_mm": (refined.translation.vector - prior.translation.vector).norm() * 1e3,
+                    "turned_deg": prior.rotation.angle_to(&refined.rotation).to_degrees(),
+                    "std_mm": (0..3).map(|k| sd(k).map(|v| v * 1e3)).collect::<Vec<_>>(),
+                    "std_deg": (3..6).map(|k| sd(k).map(f64::to_degrees)).collect::<Vec<_>>(),
+                })
+            })
+            .collect()
+    } else {
+        Vec::new()
+    };
     write_map(&args.out, &built.map).map_err(|source| CliError::Data {
         what: "map",
         source,
@@ -34,6 +64,8 @@ fn run_with<D: Descriptor>(args: &MapArgs, bars: &Bars) -> Result<Outcome, CliEr
         "reprojection_error_px": built.rms_px,
         "rounds": built.rounds.len(),
         "verified_pairs": built.tracks.verified_pairs,
+        "extrinsics": if args.refine_extrinsics { "refined" } else { "held" },
+        "cameras": moved,
     });
     if args.json {
         print(&(serde_json::to_string_pretty(&summary).unwrap_or_default() + "\n"))?;
@@ -49,6 +81,14 @@ fn run_with<D: Descriptor>(args: &MapArgs, bars: &Bars) -> Result<Outcome, CliEr
             built.map.images.len(),
             args.out.display()
         ))?;
+        for m in &moved {
+            print(&format!(
+                "{}: moved {:.3} mm and turned {:.5} deg from the camera file\n",
+                m["name"].as_str().unwrap_or("?"),
+                m["moved_mm"].as_f64().unwrap_or(f64::NAN),
+                m["turned_deg"].as_f64().unwrap_or(f64::NAN)
+            ))?;
+        }
     }
     Ok(Outcome::Done)
 }

@@ -205,13 +205,17 @@ pub struct MapArgs {
     /// The survey's rig-log file (`.ibclog`).
     #[arg(long, value_name = "FILE")]
     pub log: PathBuf,
-    /// The calibrated rig: a Kalibr camchain YAML or a CamOdoCal folder (intrinsics and
-    /// extrinsics are used as they are).
+    /// The calibrated rig: a Kalibr camchain YAML or a CamOdoCal folder (intrinsics used as
+    /// they are; extrinsics too unless --refine-extrinsics).
     #[arg(long, value_name = "FILE")]
     pub cameras: PathBuf,
     /// The map file to write (`.ibcmap`), atomically.
     #[arg(long, value_name = "FILE")]
     pub out: PathBuf,
+    /// Refine the extrinsics with the map, starting from the camera file's (the scale held by
+    /// its longest baseline from the first camera); the summary says how far each moved.
+    #[arg(long)]
+    pub refine_extrinsics: bool,
     /// Print a JSON summary on standard output instead of the line.
     #[arg(long)]
     pub json: bool,

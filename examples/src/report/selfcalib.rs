@@ -172,7 +172,7 @@ impl SelfCalibrationReport {
                 kind: "not_converged",
                 message: format!(
                     "the extrinsics still changed by more than the set fraction of their \
-                     standard deviation (default a fifth) after {} rounds of triangulation and \
+                     standard deviation (default a half) after {} rounds of triangulation and \
                      adjustment",
                     result.rounds.len()
                 ),

@@ -1,7 +1,8 @@
 //! The survey phase (Heng et al. §IV-A, "a standard structure-from-motion implementation can
 //! be used to build a sparse feature map"): a calibrated rig drives through the area, and the
 //! machinery of [`super::self_calibrate`] with the rig's extrinsics held (they also fix the
-//! metric scale) reconstructs the points; the map holds every posed image with its keypoints,
+//! metric scale), or refined from them ([`MapOptions::refine_extrinsics`]), reconstructs the
+//! points; the map holds every posed image with its keypoints,
 //! descriptors and the points they observe, in the format `ibc calibrate` reads.
 //!
 //! The map's world frame is the rig frame (camera 0's) at the first frame the reconstruction
@@ -9,11 +10,40 @@
 
 use ibc_camera_models::Rig;
 use ibc_vocab_tree::Descriptor;
-use nalgebra::Isometry3;
+use nalgebra::{Isometry3, Matrix6};
 
 use super::error::SelfCalibrationError;
 use super::selfcalib::{Round, SelfCalibrationOptions, TrackStats, reconstruct};
+use crate::NonExhaustive;
 use crate::data::{Map, MapImage, PointId, RigLog};
+
+/// How [`build_map`] treats the survey rig.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MapOptions {
+    /// The reconstruction's options (tracks, averaging, triangulation, adjustment rounds);
+    /// their `scale` is not used: the rig's extrinsics give it. Default
+    /// [`SelfCalibrationOptions::default`].
+    pub reconstruction: SelfCalibrationOptions,
+    /// Refine the rig's extrinsics with the map instead of holding them (default false: a
+    /// rig just calibrated is trusted). Refined, they start from the camera file's and the
+    /// scale is held by the reference camera's longest baseline as the file gives it; the
+    /// map then carries no error of a camera that moved a little since its calibration, and
+    /// [`BuiltMap::rig_from_camera`] says where each camera was found.
+    pub refine_extrinsics: bool,
+    /// Keeps the struct open to new fields: build it with `..Default::default()`.
+    #[doc(hidden)]
+    pub non_exhaustive: NonExhaustive,
+}
+
+impl Default for MapOptions {
+    fn default() -> Self {
+        Self {
+            reconstruction: SelfCalibrationOptions::default(),
+            refine_extrinsics: false,
+            non_exhaustive: NonExhaustive(()),
+        }
+    }
+}
 
 /// A map built from a survey log ([`build_map`]).
 #[derive(Clone, Debug, PartialEq)]
@@ -32,21 +62,35 @@ pub struct BuiltMap<D> {
     pub rounds: Vec<Round>,
     /// The feature tracking's counts.
     pub tracks: TrackStats,
+    /// The extrinsics the map was built with (the rig frame is camera 0's): the rig's, or
+    /// refined ([`MapOptions::refine_extrinsics`]).
+    pub rig_from_camera: Vec<Isometry3<f64>>,
+    /// With refined extrinsics, the covariance of each (`[rho, phi]`, right perturbation,
+    /// metres and radians, for the log's own pixel noise as
+    /// [`super::SelfCalibration::extrinsic_covariance`]; `None` for camera 0, the gauge); else
+    /// all `None`.
+    pub extrinsic_covariance: Vec<Option<Matrix6<f64>>>,
 }
 
 /// Builds a map from the survey `log` of the calibrated `rig` (its cameras in the log's order;
-/// intrinsics and extrinsics used as they are).
+/// intrinsics used as they are, extrinsics held or refined as `options` say).
 ///
 /// # Errors
 /// As [`super::self_calibrate`].
 pub fn build_map<D: Descriptor>(
     log: &RigLog<D>,
     rig: &Rig,
-    options: &SelfCalibrationOptions,
+    options: &MapOptions,
 ) -> Result<BuiltMap<D>, SelfCalibrationError> {
     let cameras: Vec<_> = rig.cameras.iter().map(|c| c.camera.clone()).collect();
     let known: Vec<Isometry3<f64>> = rig.cameras.iter().map(|c| c.rig_from_camera).collect();
-    let (result, observations) = reconstruct(log, &cameras, Some(&known), options)?;
+    let (result, observations) = reconstruct(
+        log,
+        &cameras,
+        Some(&known),
+        options.refine_extrinsics,
+        &options.reconstruction,
+    )?;
     let points = result.points.clone();
     let point_count = points.len();
     let mut images = Vec::new();
@@ -93,5 +137,7 @@ pub fn build_map<D: Descriptor>(
         rms_px: last.map_or(f64::NAN, |r| r.rms_px),
         rounds: result.rounds,
         tracks: result.tracks,
+        rig_from_camera: result.rig_from_camera,
+        extrinsic_covariance: result.extrinsic_covariance,
     })
 }

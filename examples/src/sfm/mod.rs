@@ -28,7 +28,7 @@ mod selfcalib;
 mod tracks;
 
 pub use error::SelfCalibrationError;
-pub use map::{BuiltMap, build_map};
+pub use map::{BuiltMap, MapOptions, build_map};
 pub use selfcalib::{
     Round, ScaleEstimate, ScaleSource, SelfCalibration, SelfCalibrationOptions, TrackStats,
     extrinsic_errors, self_calibrate,

@@ -91,10 +91,11 @@ pub struct SelfCalibrationOptions {
     pub max_rounds: usize,
     /// The loop stops when no extrinsic moved in a round by more than this fraction of its own
     /// standard deviation (rotation and translation, each on its largest axis): further rounds
-    /// would change nothing the data can tell. Default 0.2: the few outliers that come and
-    /// go between rounds move a well-determined extrinsic by about a tenth of its standard
-    /// deviation (measured on the fisheye pair: 0.12 of it, round after round), so a tenth
-    /// would never be reached; a fifth adds 2 % to the error in quadrature.
+    /// would change nothing the data can tell. Default 0.5: the few outliers that come and
+    /// go between rounds move a well-determined extrinsic by a fraction of its standard
+    /// deviation round after round (measured on the fisheye pair: 0.30 of it in rotation), so
+    /// a tighter bound may never be reached; half a deviation adds at most 12 % to the error
+    /// in quadrature.
     pub change_tolerance: f64,
     /// ... or, where a covariance is not available, when no extrinsic rotation moved more than
     /// this, radians (default 1e-6, 0.2 arc seconds), and no translation more than this
@@ -120,7 +121,7 @@ impl Default for SelfCalibrationOptions {
             solver: SolverOptions::default(),
             outlier_threshold_px: 3.0,
             max_rounds: 5,
-            change_tolerance: 0.2,
+            change_tolerance: 0.5,
             rotation_tolerance: 1e-6,
             translation_tolerance: 1e-5,
             scale: ScaleSource::Auto,
@@ -211,8 +212,9 @@ pub struct SelfCalibration {
     /// The triangulated points, world frame.
     pub points: Vec<Point3<f64>>,
     /// Covariance of each extrinsic (`[rho, phi]`, right perturbation; rotation radians,
-    /// translation in the result's unit); `None` for camera 0 (the gauge) or when it could not
-    /// be computed.
+    /// translation in the result's unit), scaled by the last adjustment's a-posteriori
+    /// variance factor 2 cost / (residuals - unknowns), so it is for the log's own pixel noise;
+    /// `None` for camera 0 (the gauge) or when it could not be computed.
     pub extrinsic_covariance: Vec<Option<Matrix6<f64>>>,
     /// How the scale was fixed.
     pub scale: ScaleEstimate,
@@ -279,7 +281,7 @@ pub fn self_calibrate<D: Descriptor>(
     cameras: &[Camera],
     options: &SelfCalibrationOptions,
 ) -> Result<SelfCalibration, SelfCalibrationError> {
-    reconstruct(log, cameras, None, options).map(|(result, _)| result)
+    reconstruct(log, cameras, None, false, options).map(|(result, _)| result)
 }
 
 /// One observation of the final reconstruction: keypoint `keypoint` of camera `camera`'s
@@ -299,8 +301,12 @@ pub(crate) fn reconstruct<D: Descriptor>(
     log: &RigLog<D>,
     cameras: &[Camera],
     known: Option<&[Isometry3<f64>]>,
+    refine_known: bool,
     options: &SelfCalibrationOptions,
 ) -> Result<(SelfCalibration, Vec<PointObservation>), SelfCalibrationError> {
+    // Known extrinsics held (their lever arms fix the scale), or only the start of a
+    // refinement whose scale is held by the reference camera's longest known baseline.
+    let held = known.is_some() && !refine_known;
     check_options(options, cameras.len())?;
     if let Some(k) = known
         && k.len() != cameras.len()
@@ -523,17 +529,17 @@ pub(crate) fn reconstruct<D: Descriptor>(
             .solve(&RigBundleAdjustmentOptions {
                 loss: options.loss,
                 // Known extrinsics are held, and their lever arms fix the scale.
-                scale: if known.is_some() {
+                scale: if held {
                     ScaleGauge::Free
                 } else {
                     ScaleGauge::InitialBaseline
                 },
-                held_extrinsics: if known.is_some() {
+                held_extrinsics: if held {
                     (0..cameras.len()).collect()
                 } else {
                     Vec::new()
                 },
-                covariance: known.is_none(),
+                covariance: !held,
                 solver: options.solver.clone(),
                 ..Default::default()
             })
@@ -547,6 +553,22 @@ pub(crate) fn reconstruct<D: Descriptor>(
                 keypoint: o.keypoint,
                 point: o.point,
             })
+            .collect();
+        // The a-posteriori variance factor 2 cost / (residuals - unknowns): the solver's
+        // covariance is for unit pixel noise (as `ibc calibrate`'s refinement does).
+        let residuals = 2 * triangulated.observations.len();
+        let unknowns = 3 * triangulated.points.len()
+            + 6 * frames.len()
+            + if held { 0 } else { 6 * (cameras.len() - 1) };
+        let variance = if residuals > unknowns {
+            2.0 * solved.summary.final_cost / (residuals - unknowns) as f64
+        } else {
+            f64::NAN
+        };
+        let scaled: Vec<Option<Matrix6<f64>>> = solved
+            .extrinsic_covariance
+            .iter()
+            .map(|c| c.filter(|_| variance.is_finite()).map(|c| c * variance))
             .collect();
         let mut rotation_change = 0.0_f64;
         let mut translation_change = 0.0_f64;
@@ -565,11 +587,7 @@ pub(crate) fn reconstruct<D: Descriptor>(
             if camera == 0 {
                 continue;
             }
-            match solved
-                .extrinsic_covariance
-                .get(camera)
-                .and_then(Option::as_ref)
-            {
+            match scaled.get(camera).and_then(Option::as_ref) {
                 Some(c) => {
                     let t = (0..3).map(|k| c[(k, k)]).fold(0.0_f64, f64::max).sqrt();
                     let r = (3..6).map(|k| c[(k, k)]).fold(0.0_f64, f64::max).sqrt();
@@ -591,7 +609,7 @@ pub(crate) fn reconstruct<D: Descriptor>(
         for (&track, point) in triangulated.tracks.iter().zip(&points) {
             track_points[track] = Some(*point);
         }
-        covariance.clone_from(&solved.extrinsic_covariance);
+        covariance = scaled;
         rounds.push(Round {
             points: points.len(),
             observations: triangulated.observations.len(),
@@ -604,14 +622,14 @@ pub(crate) fn reconstruct<D: Descriptor>(
         });
         // With known extrinsics nothing moves them: the rounds stop when the observations
         // admitted settle (fewer than 0.1 % more).
-        let settled = known.is_some()
+        let settled = held
             && rounds.len() >= 2
             && rounds[rounds.len() - 1].observations
                 <= rounds[rounds.len() - 2].observations
                     + rounds[rounds.len() - 2].observations / 1000;
         if settled
-            || (known.is_none() && within_uncertainty)
-            || (known.is_none()
+            || (!held && within_uncertainty)
+            || (!held
                 && rotation_change <= options.rotation_tolerance
                 && translation_change <= options.translation_tolerance * lever)
         {
