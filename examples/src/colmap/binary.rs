@@ -335,7 +335,8 @@ pub fn rigs_from_bytes(bytes: &[u8], path: &Path) -> Result<Vec<ColmapRig>> {
     let mut rigs = Vec::with_capacity(n);
     for _ in 0..n {
         let rig_id = c.u32("a rig id")?;
-        let sensors = c.count_u32(9, "rig sensors")?;
+        // The reference sensor's 8 bytes, then at least 9 for each other one.
+        let sensors = c.count_u32(8, "rig sensors")?;
         if sensors == 0 {
             return Err(c.invalid(format!("rig {rig_id} has no sensor")));
         }

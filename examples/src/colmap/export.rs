@@ -302,3 +302,109 @@ pub fn write_colmap<D: ColmapDescriptor>(
     staged.stage(dir.join(file_names::RIG_CONFIG), rig_config.as_bytes())?;
     Ok(staged.commit()?)
 }
+
+/// The COLMAP database of a rig log: the rig's cameras (matched to the log's cameras by name),
+/// one rig (the log's first camera its reference), one frame per log frame, and per image
+/// `<camera name>/<time stamp in nanoseconds, 19 digits>.png` with its keypoints and
+/// descriptors. Read it back with [`super::log_from_database`] and
+/// `seconds_per_unit: 1e-9`. Odometry is not written (COLMAP's database has no place for
+/// it). `path` names the database in errors.
+///
+/// # Errors
+/// [`ColmapError::Invalid`] when a log camera has no camera of its name in `rig`, or a time
+/// stamp is negative or not finite; [`ColmapError::UnsupportedIbcModel`];
+/// [`ColmapError::Database`].
+pub fn log_database_bytes<D: ColmapDescriptor>(
+    path: &Path,
+    rig: &Rig,
+    log: &crate::data::RigLog<D>,
+) -> Result<Vec<u8>> {
+    let invalid = |what: String| ColmapError::Invalid {
+        path: path.to_owned(),
+        what,
+    };
+    let mut rig_cameras = Vec::with_capacity(log.camera_names.len());
+    for name in &log.camera_names {
+        rig_cameras.push(
+            rig.camera(name)
+                .ok_or_else(|| invalid(format!("the rig has no camera {name:?} of the log")))?,
+        );
+    }
+    let cameras = rig_cameras
+        .iter()
+        .enumerate()
+        .map(|(i, c)| ColmapCamera::from_ibc(id(i), &c.name, &c.camera))
+        .collect::<Result<Vec<_>>>()?;
+    let sensor = |c: usize| Sensor {
+        kind: SensorKind::Camera,
+        id: id(c),
+    };
+    let colmap_rig = ColmapRig {
+        rig_id: 1,
+        ref_sensor: sensor(0),
+        sensors: (1..rig_cameras.len())
+            .map(|c| {
+                let pose =
+                    rig_cameras[c].rig_from_camera.inverse() * rig_cameras[0].rig_from_camera;
+                (sensor(c), Some(pose))
+            })
+            .collect(),
+    };
+    let mut images = Vec::new();
+    let mut frames = Vec::with_capacity(log.frames.len());
+    for (f, frame) in log.frames.iter().enumerate() {
+        let ns = frame.timestamp * 1e9;
+        if !(ns.is_finite() && ns >= 0.0 && ns < 1e19) {
+            return Err(invalid(format!(
+                "frame {f}: time stamp {} s",
+                frame.timestamp
+            )));
+        }
+        let mut data = Vec::new();
+        for (c, features) in frame.images.iter().enumerate() {
+            let Some(camera) = rig_cameras.get(c) else {
+                return Err(invalid(format!(
+                    "frame {f} has more images than the log has cameras"
+                )));
+            };
+            let image_id = id(images.len());
+            data.push((sensor(c), u64::from(image_id)));
+            images.push((
+                DatabaseImage {
+                    image_id,
+                    name: format!("{}/{:019}.png", camera.name, ns.round() as u64),
+                    camera_id: id(c),
+                },
+                features,
+            ));
+        }
+        frames.push(DatabaseFrame {
+            frame_id: id(f),
+            rig_id: 1,
+            data,
+        });
+    }
+    database_to_bytes(
+        path,
+        &DatabaseContent {
+            cameras: &cameras,
+            rigs: &[colmap_rig],
+            frames: &frames,
+            images: &images,
+        },
+    )
+}
+
+/// Writes the COLMAP database of a rig log ([`log_database_bytes`]) atomically.
+///
+/// # Errors
+/// Those of [`log_database_bytes`]; [`ColmapError::Io`] when the file cannot be written.
+pub fn write_colmap_log<D: ColmapDescriptor>(
+    path: impl AsRef<Path>,
+    rig: &Rig,
+    log: &crate::data::RigLog<D>,
+) -> Result<()> {
+    let path = path.as_ref();
+    let bytes = log_database_bytes(path, rig, log)?;
+    Ok(ibc_camera_models::io::write_atomically(path, &bytes)?)
+}

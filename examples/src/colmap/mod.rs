@@ -56,7 +56,8 @@ pub use database::{
 };
 pub use error::{ColmapError, Result};
 pub use export::{
-    ColmapExport, colmap_from_map, file_names, rig_config_json, survey_image_sources, write_colmap,
+    ColmapExport, colmap_from_map, file_names, log_database_bytes, rig_config_json,
+    survey_image_sources, write_colmap, write_colmap_log,
 };
 pub use map::{
     ColmapLogOptions, ColmapMap, ibc_cameras, log_from_database, map_from_colmap, read_colmap_log,
