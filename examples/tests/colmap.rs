@@ -765,3 +765,172 @@ fn a_rig_colmap_cannot_hold_writes_nothing() {
     assert!(matches!(err, ColmapError::Invalid { .. }), "{err}");
     assert!(!out.exists(), "nothing written");
 }
+
+// ---- the command line ----
+
+fn ibc(args: &[&str]) -> std::process::Output {
+    std::process::Command::new(env!("CARGO_BIN_EXE_ibc"))
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+#[test]
+fn ibc_calibrate_takes_colmap_maps_and_logs() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = |p: &str| dir.path().join(p).to_str().unwrap().to_owned();
+    std::fs::write(
+        dir.path().join("small.yaml"),
+        "version: 1\nbase: garage\nscale: 0.05\n",
+    )
+    .unwrap();
+    let o = ibc(&[
+        "simulate",
+        "--scenario",
+        &d("small.yaml"),
+        "--out",
+        &d("world"),
+        "--colmap",
+        "--quiet",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let mut names: Vec<String> = std::fs::read_dir(dir.path().join("world/colmap"))
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    assert_eq!(
+        names,
+        ["database.db", "log.db", "rig_config.json", "sparse"]
+    );
+    let cameras = d("world/camchain.yaml");
+    let calibrate = |map: &[&str], log: &str, out: &str| {
+        let out = d(out);
+        let mut args = vec![
+            "calibrate",
+            "--log",
+            log,
+            "--cameras",
+            &cameras,
+            "--out",
+            &out,
+        ];
+        args.extend_from_slice(map);
+        args.extend_from_slice(&["--json", "--quiet", "--colmap-seconds-per-unit", "1e-9"]);
+        ibc(&args)
+    };
+    let native = calibrate(
+        &["--map", &d("world/map.ibcmap")],
+        &d("world/log.ibclog"),
+        "native",
+    );
+    let colmap = calibrate(
+        &[
+            "--map",
+            &d("world/colmap/sparse"),
+            "--database",
+            &d("world/colmap/database.db"),
+        ],
+        &d("world/colmap/log.db"),
+        "colmap",
+    );
+    // A COLMAP map with an ibc log, too.
+    let mixed = calibrate(
+        &[
+            "--map",
+            &d("world/colmap/sparse"),
+            "--database",
+            &d("world/colmap/database.db"),
+        ],
+        &d("world/log.ibclog"),
+        "mixed",
+    );
+    for o in [&native, &colmap, &mixed] {
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    }
+    let report = |o: &std::process::Output| -> Value { serde_json::from_slice(&o.stdout).unwrap() };
+    let (a, b, m) = (report(&native), report(&colmap), report(&mixed));
+    for (ca, (cb, cm)) in a["cameras"].as_array().unwrap().iter().zip(
+        b["cameras"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .zip(m["cameras"].as_array().unwrap()),
+    ) {
+        let t = |c: &Value| -> Vec<f64> {
+            c["rig_from_camera"]["translation"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(f)
+                .collect()
+        };
+        let std = c_std(ca);
+        for (x, y) in t(ca).iter().zip(t(cb)) {
+            // The log's f32 keypoints move the extrinsics by a small part of their uncertainty.
+            assert!(
+                (x - y).abs() < 0.05 * std.max(1e-6),
+                "{} vs {} (sd {std})",
+                x,
+                y
+            );
+        }
+        for (x, y) in t(ca).iter().zip(t(cm)) {
+            // The map alone goes through f64 text: the same to ~1e-12.
+            assert!((x - y).abs() < 1e-9, "{} vs {}", x, y);
+        }
+    }
+
+    // A COLMAP model without its database: a usage error, nothing written.
+    let o = ibc(&[
+        "calibrate",
+        "--map",
+        &d("world/colmap/sparse"),
+        "--log",
+        &d("world/colmap/log.db"),
+        "--cameras",
+        &d("world/camchain.yaml"),
+        "--out",
+        &d("bad"),
+    ]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--database"));
+    assert!(!dir.path().join("bad").exists());
+    // A database whose descriptors were dropped: a typed error naming it, nothing written.
+    let broken = dir.path().join("broken.db");
+    std::fs::copy(dir.path().join("world/colmap/database.db"), &broken).unwrap();
+    rusqlite::Connection::open(&broken)
+        .unwrap()
+        .execute_batch("DROP TABLE descriptors;")
+        .unwrap();
+    let o = ibc(&[
+        "calibrate",
+        "--map",
+        &d("world/colmap/sparse"),
+        "--database",
+        broken.to_str().unwrap(),
+        "--log",
+        &d("world/colmap/log.db"),
+        "--cameras",
+        &d("world/camchain.yaml"),
+        "--out",
+        &d("bad"),
+    ]);
+    assert_eq!(o.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("broken.db") && err.contains("descriptors"),
+        "{err}"
+    );
+    assert!(!dir.path().join("bad").exists());
+}
+
+/// The largest translation standard deviation of a report camera, metres.
+fn c_std(c: &Value) -> f64 {
+    c["rig_from_camera_std"]["translation_m"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(f)
+        .fold(0.0, f64::max)
+}

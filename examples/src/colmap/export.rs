@@ -354,7 +354,7 @@ pub fn log_database_bytes<D: ColmapDescriptor>(
     let mut frames = Vec::with_capacity(log.frames.len());
     for (f, frame) in log.frames.iter().enumerate() {
         let ns = frame.timestamp * 1e9;
-        if !(ns.is_finite() && ns >= 0.0 && ns < 1e19) {
+        if !(0.0..1e19).contains(&ns) {
             return Err(invalid(format!(
                 "frame {f}: time stamp {} s",
                 frame.timestamp

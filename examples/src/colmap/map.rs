@@ -338,6 +338,9 @@ pub fn log_from_database<D: ColmapDescriptor>(
     build_log(database, options, camera_ids, folder_of, grouped)
 }
 
+/// A frame's images by camera, with its file name's number and the file name (sort keys).
+type KeyedFrame<'a> = (Option<f64>, String, Vec<Option<&'a DatabaseImage>>);
+
 fn build_log<D: ColmapDescriptor>(
     database: &ColmapDatabase,
     options: &ColmapLogOptions,
@@ -357,7 +360,7 @@ fn build_log<D: ColmapDescriptor>(
         names.push(unique.cloned().unwrap_or_else(|| format!("camera{id}")));
     }
     // Sort frames by (time, name of the first image).
-    let mut keyed: Vec<(Option<f64>, String, Vec<Option<&DatabaseImage>>)> = grouped
+    let mut keyed: Vec<KeyedFrame<'_>> = grouped
         .into_iter()
         .filter_map(|row| {
             let first = row.iter().flatten().next()?;

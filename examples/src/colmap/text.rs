@@ -104,7 +104,7 @@ impl<'a> Line<'a> {
     /// The remaining tokens, in groups of `n` (a list of tuples).
     fn groups(&mut self, n: usize, what: &str) -> Result<Vec<Vec<&'a str>>> {
         let rest: Vec<&str> = self.tokens.by_ref().collect();
-        if rest.len() % n != 0 {
+        if !rest.len().is_multiple_of(n) {
             return Err(self.error(format!(
                 "{} values in the list of {what}, not a multiple of {n}",
                 rest.len()
