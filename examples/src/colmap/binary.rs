@@ -1,5 +1,5 @@
 //! COLMAP's binary sparse model (`cameras.bin`, `images.bin`, `points3D.bin`, and
-//! `rigs.bin`, `frames.bin` since COLMAP 3.12), read after the documented layout
+//! `rigs.bin`, `frames.bin` since COLMAP 3.12), read and written after the documented layout
 //! (<https://colmap.github.io/format.html>, "Binary File Format": little-endian, the text
 //! format's fields in binary):
 //!
@@ -392,4 +392,94 @@ pub fn frames_from_bytes(bytes: &[u8], path: &Path) -> Result<Vec<ColmapFrame>> 
     }
     c.finish()?;
     Ok(frames)
+}
+
+fn pose_bytes(out: &mut Vec<u8>, p: &nalgebra::Isometry3<f64>) {
+    for v in super::model::pose_values(p) {
+        out.extend(v.to_le_bytes());
+    }
+}
+
+fn len_u32(n: usize) -> u32 {
+    // Counts past u32 cannot come from a model COLMAP reads; saturate rather than wrap.
+    u32::try_from(n).unwrap_or(u32::MAX)
+}
+
+/// The five binary files of a model, in the layout of the module docs: `(file name, bytes)`.
+pub fn model_to_binary(model: &ColmapModel) -> Vec<(&'static str, Vec<u8>)> {
+    let mut cameras = (model.cameras.len() as u64).to_le_bytes().to_vec();
+    for c in &model.cameras {
+        cameras.extend(c.camera_id.to_le_bytes());
+        cameras.extend(c.model.id().to_le_bytes());
+        cameras.extend(c.width.to_le_bytes());
+        cameras.extend(c.height.to_le_bytes());
+        for p in &c.params {
+            cameras.extend(p.to_le_bytes());
+        }
+    }
+    let mut images = (model.images.len() as u64).to_le_bytes().to_vec();
+    for i in &model.images {
+        images.extend(i.image_id.to_le_bytes());
+        pose_bytes(&mut images, &i.cam_from_world);
+        images.extend(i.camera_id.to_le_bytes());
+        images.extend(i.name.as_bytes());
+        images.push(0);
+        images.extend((i.points2d.len() as u64).to_le_bytes());
+        for p in &i.points2d {
+            images.extend(p.xy.x.to_le_bytes());
+            images.extend(p.xy.y.to_le_bytes());
+            images.extend(p.point3d_id.to_le_bytes());
+        }
+    }
+    let mut points = (model.points3d.len() as u64).to_le_bytes().to_vec();
+    for p in &model.points3d {
+        points.extend(p.point3d_id.to_le_bytes());
+        for v in [p.xyz.x, p.xyz.y, p.xyz.z] {
+            points.extend(v.to_le_bytes());
+        }
+        points.extend(p.color);
+        points.extend(p.error.to_le_bytes());
+        points.extend((p.track.len() as u64).to_le_bytes());
+        for (image, idx) in &p.track {
+            points.extend(image.to_le_bytes());
+            points.extend(idx.to_le_bytes());
+        }
+    }
+    let mut rigs = (model.rigs.len() as u64).to_le_bytes().to_vec();
+    for r in &model.rigs {
+        rigs.extend(r.rig_id.to_le_bytes());
+        rigs.extend(len_u32(r.sensors.len() + 1).to_le_bytes());
+        rigs.extend(r.ref_sensor.kind.code().to_le_bytes());
+        rigs.extend(r.ref_sensor.id.to_le_bytes());
+        for (s, pose) in &r.sensors {
+            rigs.extend(s.kind.code().to_le_bytes());
+            rigs.extend(s.id.to_le_bytes());
+            match pose {
+                Some(p) => {
+                    rigs.push(1);
+                    pose_bytes(&mut rigs, p);
+                }
+                None => rigs.push(0),
+            }
+        }
+    }
+    let mut frames = (model.frames.len() as u64).to_le_bytes().to_vec();
+    for f in &model.frames {
+        frames.extend(f.frame_id.to_le_bytes());
+        frames.extend(f.rig_id.to_le_bytes());
+        pose_bytes(&mut frames, &f.rig_from_world);
+        frames.extend(len_u32(f.data.len()).to_le_bytes());
+        for (s, data) in &f.data {
+            frames.extend(s.kind.code().to_le_bytes());
+            frames.extend(s.id.to_le_bytes());
+            frames.extend(data.to_le_bytes());
+        }
+    }
+    vec![
+        ("cameras.bin", cameras),
+        ("images.bin", images),
+        ("points3D.bin", points),
+        ("rigs.bin", rigs),
+        ("frames.bin", frames),
+    ]
 }

@@ -47,7 +47,8 @@ mod model;
 mod text;
 
 pub use binary::{
-    cameras_from_bytes, frames_from_bytes, images_from_bytes, points_from_bytes, rigs_from_bytes,
+    cameras_from_bytes, frames_from_bytes, images_from_bytes, model_to_binary, points_from_bytes,
+    rigs_from_bytes,
 };
 pub use camera::{ColmapCamera, ColmapCameraModel, PIXEL_SHIFT};
 pub use database::{
@@ -64,8 +65,8 @@ pub use map::{
     read_colmap_map,
 };
 pub use model::{
-    ColmapFrame, ColmapImage, ColmapModel, ColmapPoint2D, ColmapPoint3D, ColmapRig, NO_POINT3D,
-    Sensor, SensorKind, UNIT_QUATERNION_TOLERANCE, read_model,
+    ColmapFrame, ColmapImage, ColmapModel, ColmapPoint2D, ColmapPoint3D, ColmapRig, ModelFormat,
+    NO_POINT3D, Sensor, SensorKind, UNIT_QUATERNION_TOLERANCE, read_model, write_model,
 };
 pub use text::{
     cameras_from_text, frames_from_text, images_from_text, model_to_text, points_from_text,

@@ -267,7 +267,8 @@ impl ColmapModel {
 }
 
 /// A pose from COLMAP's `QW QX QY QZ TX TY TZ`, or `None` when a value is not finite or the
-/// quaternion is not a unit (within [`UNIT_QUATERNION_TOLERANCE`]; it is normalized).
+/// quaternion is not a unit (within [`UNIT_QUATERNION_TOLERANCE`]; beyond rounding it is
+/// normalized).
 pub(crate) fn pose(v: [f64; 7]) -> Option<Isometry3<f64>> {
     if v.iter().any(|x| !x.is_finite()) {
         return None;
@@ -276,9 +277,16 @@ pub(crate) fn pose(v: [f64; 7]) -> Option<Isometry3<f64>> {
     if (q.norm() - 1.0).abs() > UNIT_QUATERNION_TOLERANCE {
         return None;
     }
+    // A quaternion that is a unit to rounding is kept as written, so that a model reads and
+    // writes back bit for bit; others are normalized.
+    let rotation = if (q.norm() - 1.0).abs() <= 4.0 * f64::EPSILON {
+        UnitQuaternion::new_unchecked(q)
+    } else {
+        UnitQuaternion::from_quaternion(q)
+    };
     Some(Isometry3::from_parts(
         Translation3::new(v[4], v[5], v[6]),
-        UnitQuaternion::from_quaternion(q),
+        rotation,
     ))
 }
 
@@ -310,4 +318,38 @@ pub fn read_model(dir: impl AsRef<Path>) -> Result<ColmapModel> {
     };
     model.check(dir)?;
     Ok(model)
+}
+
+/// The two encodings of a sparse model.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ModelFormat {
+    /// `*.txt` ([`super::model_to_text`]).
+    Text,
+    /// `*.bin` ([`super::model_to_binary`]), COLMAP's default.
+    Binary,
+}
+
+/// Writes `model` into `dir` (the five files of `format`), all or nothing
+/// ([`crate::data::io::StagedFiles`]); returns the paths written.
+///
+/// # Errors
+/// [`ColmapError::Output`] when a file cannot be written (nothing is then left).
+pub fn write_model(
+    dir: impl AsRef<Path>,
+    model: &ColmapModel,
+    format: ModelFormat,
+) -> Result<Vec<std::path::PathBuf>> {
+    let dir = dir.as_ref();
+    let files: Vec<(&str, Vec<u8>)> = match format {
+        ModelFormat::Text => text::model_to_text(model)
+            .into_iter()
+            .map(|(n, t)| (n, t.into_bytes()))
+            .collect(),
+        ModelFormat::Binary => binary::model_to_binary(model),
+    };
+    let mut staged = crate::data::io::StagedFiles::new(dir)?;
+    for (name, bytes) in files {
+        staged.stage(dir.join(name), &bytes)?;
+    }
+    Ok(staged.commit()?)
 }
