@@ -99,10 +99,10 @@ fn large_map() -> (Rig, Map<[f32; 128]>) {
             // model built by COLMAP has none).
             let mut seen = std::collections::HashSet::new();
             for p in &mut point_ids {
-                if let Some(id) = *p {
-                    if !seen.insert(id) {
-                        *p = None;
-                    }
+                if let Some(id) = *p
+                    && !seen.insert(id)
+                {
+                    *p = None;
                 }
             }
             MapImage {
