@@ -949,3 +949,86 @@ fn ibc_writes_colmap_binary_models_byte_for_byte() {
         .unwrap();
     assert_eq!(read_model(dir.path()).unwrap(), model);
 }
+
+#[test]
+fn mutated_models_and_databases_never_panic() {
+    use rand::{RngExt, SeedableRng};
+    // Seeded byte flips, insertions and cuts of every fixture file: each read returns a model
+    // or a typed error, never a panic (a fuzz-like campaign, as parsers_mutation runs for
+    // ibc's own files).
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(19);
+    let mut errors = 0;
+    for sub in ["binary", "text"] {
+        let dir = copy_fixture(sub);
+        let names: Vec<PathBuf> = std::fs::read_dir(dir.path())
+            .unwrap()
+            .map(|e| e.unwrap().path())
+            .collect();
+        for _ in 0..300 {
+            let path = &names[rng.random_range(0..names.len())];
+            let original = std::fs::read(path).unwrap();
+            let mut bytes = original.clone();
+            for _ in 0..rng.random_range(1..4) {
+                let at = rng.random_range(0..bytes.len());
+                match rng.random_range(0..3) {
+                    0 => bytes[at] ^= 1 << rng.random_range(0..8),
+                    1 => bytes.insert(at, rng.random()),
+                    _ => bytes.truncate(at.max(1)),
+                }
+            }
+            std::fs::write(path, &bytes).unwrap();
+            if read_model(dir.path()).is_err() {
+                errors += 1;
+            }
+            std::fs::write(path, &original).unwrap();
+        }
+    }
+    let (_dir, path) = edited_database("");
+    let original = std::fs::read(&path).unwrap();
+    let model = read_model(fixtures().join("binary")).unwrap();
+    let mut db_errors = 0;
+    for _ in 0..100 {
+        std::fs::write(&path, &original).unwrap();
+        let table = ["keypoints", "descriptors", "cameras", "rig_sensors"][rng.random_range(0..4)];
+        let (column, rows) = match table {
+            "cameras" => ("params", 4),
+            "rig_sensors" => ("sensor_from_rig", 1),
+            // Image 9 is in neither the model nor a frame: nothing reads it.
+            _ => ("data", 8),
+        };
+        // Cut the first bytes of one row's blob.
+        rusqlite::Connection::open(&path)
+            .unwrap()
+            .execute(
+                &format!("UPDATE {table} SET {column} = substr({column}, 1 + ?1) WHERE rowid = ?2"),
+                rusqlite::params![rng.random_range(1..64), rng.random_range(1..=rows)],
+            )
+            .unwrap();
+        let db = ColmapDatabase::open(&path).unwrap();
+        let map = map_from_colmap::<Sift>(&model, &db);
+        let log = log_from_database::<Sift>(&db, &ColmapLogOptions::default());
+        let cameras = db.cameras();
+        let rigs = db.rigs();
+        if map.is_err() || log.is_err() || cameras.is_err() || rigs.is_err() {
+            db_errors += 1;
+        }
+    }
+    println!("{errors} of 600 mutated models and {db_errors} of 100 databases refused");
+    assert!(db_errors == 100, "every cut blob is caught ({db_errors})");
+    assert!(errors > 400, "most mutated files are refused ({errors})");
+}
+
+#[test]
+fn descriptors_other_than_sift_or_binary_are_named() {
+    // COLMAP 4's learned descriptors (ALIKED is type 1 or 2) are not SIFT.
+    let (_dir, path) = edited_database("UPDATE descriptors SET type = 2;");
+    let db = ColmapDatabase::open(&path).unwrap();
+    let err = db.descriptor_layout().unwrap_err();
+    assert!(err.to_string().contains("type 2"), "{err}");
+    let model = read_model(fixtures().join("binary")).unwrap();
+    let err = map_from_colmap::<Sift>(&model, &db).unwrap_err();
+    assert!(
+        matches!(err, ColmapError::DescriptorMismatch { kind: 2, .. }),
+        "{err}"
+    );
+}

@@ -619,7 +619,8 @@ impl ColmapDatabase {
     ///
     /// # Errors
     /// [`ColmapError::Database`]; [`ColmapError::MissingFeatures`] naming no image when the
-    /// database holds no descriptors; [`ColmapError::Invalid`] for other widths.
+    /// database holds no descriptors; [`ColmapError::Invalid`] for other widths and for
+    /// descriptor types other than SIFT and undefined (COLMAP 4's ALIKED, say).
     pub fn descriptor_layout(&self) -> Result<DescriptorLayout> {
         let none = || ColmapError::MissingFeatures {
             path: self.path.clone(),
@@ -629,15 +630,26 @@ impl ColmapDatabase {
         if !self.has_table("descriptors")? {
             return Err(none());
         }
-        let cols: Option<i64> = self
+        let sql = if self.has_column("descriptors", "type")? {
+            "SELECT type, cols FROM descriptors WHERE rows > 0 LIMIT 1"
+        } else {
+            "SELECT -1, cols FROM descriptors WHERE rows > 0 LIMIT 1"
+        };
+        let row: Option<(i64, i64)> = self
             .connection
-            .query_row(
-                "SELECT cols FROM descriptors WHERE rows > 0 LIMIT 1",
-                [],
-                |r| r.get(0),
-            )
+            .query_row(sql, [], |r| Ok((r.get(0)?, r.get(1)?)))
             .optional()
             .map_err(|e| self.sql(e))?;
+        if let Some((kind, _)) = row
+            && kind != SIFT_TYPE
+            && kind != UNDEFINED_TYPE
+        {
+            return Err(self.invalid(format!(
+                "descriptors of COLMAP type {kind}: ibc reads SIFT (type 0) and binary \
+                 descriptors (type -1)"
+            )));
+        }
+        let cols = row.map(|r| r.1);
         match cols {
             None => Err(none()),
             Some(128) => Ok(DescriptorLayout {
@@ -648,7 +660,10 @@ impl ColmapDatabase {
                 kind: DescriptorKind::Binary,
                 width: (c / 8) as u32,
             }),
-            Some(c) => Err(self.invalid(format!("descriptors of {c} bytes: ibc reads 128-byte SIFT and binary descriptors of a multiple of 8 bytes"))),
+            Some(c) => Err(self.invalid(format!(
+                "descriptors of {c} bytes: ibc reads 128-byte SIFT and binary descriptors of a \
+                 multiple of 8 bytes"
+            ))),
         }
     }
 }
