@@ -881,6 +881,29 @@ fn ibc_calibrate_takes_colmap_maps_and_logs() {
         }
     }
 
+    // The calibration as COLMAP's rig config: camera 0 the reference, the others'
+    // cam_from_rig the inverse of the report's rig_from_camera.
+    let config: Value = serde_json::from_str(
+        &std::fs::read_to_string(dir.path().join("colmap/rig_config.json")).unwrap(),
+    )
+    .unwrap();
+    let cameras = config[0]["cameras"].as_array().unwrap();
+    assert_eq!(cameras.len(), 4);
+    assert_eq!(cameras[0]["ref_sensor"], true);
+    for (c, rc) in cameras.iter().zip(b["cameras"].as_array().unwrap()).skip(1) {
+        let t: Vec<f64> = c["cam_from_rig_translation"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(f)
+            .collect();
+        let rig_from_camera = pose(&rc["rig_from_camera"]);
+        let expected = rig_from_camera.inverse().translation.vector;
+        for k in 0..3 {
+            assert!((t[k] - expected[k]).abs() < 1e-9, "{t:?} vs {expected:?}");
+        }
+    }
+
     // A COLMAP model without its database: a usage error, nothing written.
     let o = ibc(&[
         "calibrate",
