@@ -23,6 +23,7 @@
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
+use ibc_camera_models::io::IoError;
 use ibc_vocab_tree::{Descriptor, DescriptorKind};
 use nalgebra::Vector2;
 use rusqlite::{Connection, OpenFlags, OptionalExtension, params};
@@ -155,8 +156,12 @@ impl ColmapDatabase {
         let path = path.as_ref().to_owned();
         let (_, len) = ibc_camera_models::io::open_regular(&path)?;
         if len > MAX_BINARY_INPUT_BYTES {
-            // The reader's own message for a file past the bound.
-            ibc_camera_models::io::read_bytes(&path, MAX_BINARY_INPUT_BYTES)?;
+            return Err(IoError::TooLarge {
+                path,
+                size: len,
+                limit: MAX_BINARY_INPUT_BYTES,
+            }
+            .into());
         }
         let connection = Connection::open_with_flags(
             &path,

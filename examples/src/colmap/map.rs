@@ -207,8 +207,9 @@ fn name_number(file: &str) -> Option<f64> {
 ///   image in a frame has no features there. No odometry.
 ///
 /// # Errors
-/// [`ColmapError::Invalid`] when the database has no images or the frames give fewer than
-/// one camera, [`ColmapError::MissingFeatures`], [`ColmapError::BadFeatures`],
+/// [`ColmapError::Invalid`] when the database has no images, a frame names an image or
+/// camera that is not there, or `seconds_per_unit` is not finite and positive;
+/// [`ColmapError::MissingFeatures`], [`ColmapError::BadFeatures`],
 /// [`ColmapError::DescriptorMismatch`] for an image's features, [`ColmapError::Database`].
 pub fn log_from_database<D: ColmapDescriptor>(
     database: &ColmapDatabase,
@@ -218,6 +219,12 @@ pub fn log_from_database<D: ColmapDescriptor>(
         path: database.path().to_owned(),
         what,
     };
+    if !(options.seconds_per_unit.is_finite() && options.seconds_per_unit > 0.0) {
+        return Err(invalid(format!(
+            "seconds per unit of the image names must be finite and positive, not {}",
+            options.seconds_per_unit
+        )));
+    }
     let images = database.images()?;
     if images.is_empty() {
         return Err(invalid("the database holds no image".to_owned()));
