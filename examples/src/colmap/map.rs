@@ -230,7 +230,7 @@ pub fn log_from_database<D: ColmapDescriptor>(
         return Err(invalid("the database holds no image".to_owned()));
     }
     let by_id: HashMap<u32, &DatabaseImage> = images.iter().map(|i| (i.image_id, i)).collect();
-    // (camera ids in log order, frames as (sort key, per camera the image)).
+    // The rig whose frames make the log: the one asked for, else the one with the most cameras.
     let rigs = database.rigs()?;
     let frames = database.frames()?;
     let camera_count = |rig: &super::ColmapRig| {

@@ -31,7 +31,8 @@
 //! let dir = tempfile::tempdir()?;
 //! let sources = survey_image_sources(world.map.images.len(), world.map_rig.cameras.len());
 //! write_colmap(dir.path(), &world.map_rig, &world.map, &sources)?;
-//! let read = read_colmap_map::<[u64; 4]>(dir.path().join("sparse"), dir.path().join("database.db"))?;
+//! let (sparse, database) = (dir.path().join("sparse"), dir.path().join("database.db"));
+//! let read = read_colmap_map::<[u64; 4]>(sparse, database)?;
 //! assert_eq!(read.map.points.len(), world.map.points.len());
 //! # Ok(())
 //! # }
