@@ -180,6 +180,14 @@ def make():
             f.add_data_id(d)
         db.write_frame(f, use_frame_id=True)
     db.close()
+    # COLMAP keeps its databases in write-ahead-log mode, in which even a read-only reader
+    # creates database.db-wal and database.db-shm next to the file; the fixture is switched to
+    # SQLite's rollback journal, so that the tests read it without writing into the repository.
+    # The tables and their bytes are the same.
+    import sqlite3
+    with sqlite3.connect(db_path) as connection:
+        connection.execute("PRAGMA journal_mode=DELETE")
+    connection.close()
 
     rec = pycolmap.Reconstruction(HERE / "binary")
     expected = {
