@@ -250,6 +250,15 @@ fn colmap_database_reads_exactly() {
     }
     assert_eq!(features, 8 * 35 - 2 + 4, "the fixture's keypoints");
     assert_eq!(db.descriptor_layout().unwrap().kind, DescriptorKind::Float);
+    // The fixture is in SQLite's rollback-journal mode: reading it writes nothing next to it
+    // (a write-ahead-log database would get -wal and -shm files).
+    drop(db);
+    for side in ["database.db-wal", "database.db-shm"] {
+        assert!(
+            !fixtures().join(side).exists(),
+            "{side} next to the fixture"
+        );
+    }
 }
 
 #[test]
