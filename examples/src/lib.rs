@@ -1,6 +1,7 @@
 #![doc = include_str!("../README.md")]
 
 pub mod calib;
+pub mod colmap;
 pub mod data;
 pub mod intrinsics;
 pub mod report;

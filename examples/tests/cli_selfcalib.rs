@@ -75,6 +75,7 @@ fn selfcalib_and_map_on_a_simulated_garage() {
             "camodocal",
             "report.json",
             "report.txt",
+            "rig_config.json",
             "top_view.svg"
         ]
     );

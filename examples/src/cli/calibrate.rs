@@ -1,15 +1,22 @@
 //! `ibc calibrate`: the pipeline on a user's files.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
+use ibc_camera_models::Rig;
 use ibc_pipeline::calib::{Calibration, Status, calibrate_with};
-use ibc_pipeline::data::GroundTruth;
+use ibc_pipeline::colmap::{
+    ColmapDatabase, ColmapDescriptor, ColmapLogOptions, read_colmap_log, read_colmap_map,
+};
 use ibc_pipeline::data::io::{read_descriptor_layout, read_map};
+use ibc_pipeline::data::{GroundTruth, Map, RigLog};
 use ibc_pipeline::report::{Report, output_names, text_table, write_outputs};
 use ibc_vocab_tree::{Descriptor, Vocabulary};
 
-use super::inputs::{read_cameras, read_log_checked, read_truth_arg, with_descriptor};
+use super::inputs::{
+    is_sqlite, read_cameras, read_log_checked, read_truth_arg, with_colmap_descriptor,
+    with_descriptor,
+};
 use super::progress::Bars;
 use super::{CalibrateArgs, CliError, Outcome, print};
 
@@ -53,8 +60,32 @@ pub fn finish(
     })
 }
 
-/// The calibration with descriptors of type `D`.
+/// The calibration of `map` and `log` (read by the caller) with the cameras and options of
+/// `args`.
+fn calibrate_inputs<D: Descriptor>(
+    args: &CalibrateArgs,
+    rig: &Rig,
+    map: &Map<D>,
+    log: &RigLog<D>,
+    truth: Option<&GroundTruth>,
+    bars: &Bars,
+) -> Result<Outcome, CliError> {
+    let vocabulary = args
+        .vocabulary
+        .as_ref()
+        .map(|p| {
+            Vocabulary::<D>::load(p)
+                .map(Arc::new)
+                .map_err(|source| CliError::Vocabulary { source })
+        })
+        .transpose()?;
+    let calibration = calibrate_with(map, log, rig, &args.hand_eye.options(), vocabulary, bars)?;
+    finish(&calibration, truth, Some(&args.out), args.json, args.quiet)
+}
+
+/// The calibration with descriptors of type `D`, from ibc files.
 fn calibrate_files<D: Descriptor>(args: &CalibrateArgs, bars: &Bars) -> Result<Outcome, CliError> {
+    // The camera file first: its errors are the cheapest to find.
     let rig = read_cameras(&args.cameras)?;
     let truth = read_truth_arg(args.truth.as_ref())?;
     bars.step("reading the map");
@@ -65,33 +96,93 @@ fn calibrate_files<D: Descriptor>(args: &CalibrateArgs, bars: &Bars) -> Result<O
     bars.done();
     let map = map?;
     let log = read_log_checked::<D>(&args.log, truth.as_ref().zip(args.truth.as_ref()), bars)?;
-    let vocabulary = args
-        .vocabulary
+    calibrate_inputs(args, &rig, &map, &log, truth.as_ref(), bars)
+}
+
+/// The COLMAP database of a COLMAP map (`--map` a folder), or `None` for an ibc map.
+fn colmap_map_database(args: &CalibrateArgs) -> Result<Option<&PathBuf>, CliError> {
+    if !args.map.is_dir() {
+        return Ok(None);
+    }
+    args.database
         .as_ref()
-        .map(|p| {
-            Vocabulary::<D>::load(p)
-                .map(Arc::new)
-                .map_err(|source| CliError::Vocabulary { source })
+        .map(Some)
+        .ok_or_else(|| CliError::ColmapDatabaseMissing {
+            path: args.map.clone(),
         })
-        .transpose()?;
-    let calibration = calibrate_with(&map, &log, &rig, &args.hand_eye.options(), vocabulary, bars)?;
-    finish(
-        &calibration,
-        truth.as_ref(),
-        Some(&args.out),
-        args.json,
-        args.quiet,
-    )
+}
+
+/// The calibration with descriptors of type `D`, when the map or the log (or both) are COLMAP
+/// data.
+fn calibrate_colmap<D: ColmapDescriptor>(
+    args: &CalibrateArgs,
+    bars: &Bars,
+) -> Result<Outcome, CliError> {
+    let rig = read_cameras(&args.cameras)?;
+    let truth = read_truth_arg(args.truth.as_ref())?;
+    let colmap = |what| move |source| CliError::Colmap { what, source };
+    bars.step("reading the map");
+    let map = match colmap_map_database(args)? {
+        Some(database) => read_colmap_map::<D>(&args.map, database)
+            .map(|m| m.map)
+            .map_err(colmap("map")),
+        None => read_map::<D>(&args.map).map_err(|source| CliError::Data {
+            what: "map",
+            source,
+        }),
+    };
+    bars.done();
+    let map = map?;
+    let log = if is_sqlite(&args.log) {
+        bars.step("reading the log");
+        let options = ColmapLogOptions {
+            seconds_per_unit: args.colmap_seconds_per_unit,
+            ..Default::default()
+        };
+        let log = read_colmap_log::<D>(&args.log, &options).map_err(colmap("rig log"));
+        bars.done();
+        let log = log?;
+        if let (Some(truth), Some(path)) = (&truth, &args.truth) {
+            truth
+                .check_log(&log.camera_names, log.frames.len())
+                .map_err(|source| CliError::TruthMismatch {
+                    path: path.clone(),
+                    source,
+                })?;
+        }
+        log
+    } else {
+        read_log_checked::<D>(&args.log, truth.as_ref().zip(args.truth.as_ref()), bars)?
+    };
+    calibrate_inputs(args, &rig, &map, &log, truth.as_ref(), bars)
 }
 
 /// Runs `ibc calibrate`.
 pub fn run(args: &CalibrateArgs) -> Result<Outcome, CliError> {
     let bars = Bars::new(args.quiet);
     let data = |what| move |source| CliError::Data { what, source };
-    let map = read_descriptor_layout(&args.map).map_err(data("map"))?;
-    let log = read_descriptor_layout(&args.log).map_err(data("rig log"))?;
+    let colmap = |what| move |source| CliError::Colmap { what, source };
+    let map_database = colmap_map_database(args)?;
+    let log_is_colmap = is_sqlite(&args.log);
+    let map = match map_database {
+        Some(db) => ColmapDatabase::open(db)
+            .and_then(|db| db.descriptor_layout())
+            .map_err(colmap("map"))?,
+        None => read_descriptor_layout(&args.map).map_err(data("map"))?,
+    };
+    let log = if log_is_colmap {
+        ColmapDatabase::open(&args.log)
+            .and_then(|db| db.descriptor_layout())
+            .map_err(colmap("rig log"))?
+    } else {
+        read_descriptor_layout(&args.log).map_err(data("rig log"))?
+    };
     if map != log {
         return Err(CliError::DescriptorMismatch { map, log });
     }
-    with_descriptor!(map, calibrate_files(args, &bars))
+    if map_database.is_some() || log_is_colmap {
+        with_colmap_descriptor!(map, calibrate_colmap(args, &bars))
+    } else {
+        with_descriptor!(map, calibrate_files(args, &bars))
+    }
 }

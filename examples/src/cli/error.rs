@@ -23,6 +23,24 @@ pub enum CliError {
         /// The reader's error, naming the file.
         source: DataFileError,
     },
+    /// A COLMAP model or database could not be read.
+    #[error("{what}: {source}")]
+    Colmap {
+        /// Which input (`map`, `rig log`).
+        what: &'static str,
+        /// The reader's error, naming the file.
+        source: ibc_pipeline::colmap::ColmapError,
+    },
+    /// A COLMAP sparse model was given as the map without its database.
+    #[error(
+        "--map {}: a COLMAP sparse model needs --database, the COLMAP database it was built \
+         from (its keypoints and descriptors)",
+        path.display()
+    )]
+    ColmapDatabaseMissing {
+        /// The model folder.
+        path: PathBuf,
+    },
     /// The ground truth is not the truth of the rig log.
     #[error("ground truth {}: {source}", path.display())]
     TruthMismatch {

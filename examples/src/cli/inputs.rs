@@ -70,6 +70,35 @@ pub(super) fn read_log_checked<D: Descriptor>(
     Ok(log)
 }
 
+/// Whether `path` is an SQLite file (a COLMAP database) rather than an ibc file: its first 16
+/// bytes are SQLite's magic. False when it cannot be read (the ibc reader then says why).
+pub(super) fn is_sqlite(path: &Path) -> bool {
+    use std::io::Read;
+    const MAGIC: &[u8; 16] = b"SQLite format 3\0";
+    let mut head = Vec::with_capacity(16);
+    ibc_camera_models::io::open_regular(path)
+        .ok()
+        .and_then(|(f, _)| f.take(16).read_to_end(&mut head).ok())
+        .is_some_and(|_| head == MAGIC)
+}
+
+/// Calls `$run::<D>($args...)` with `D` the descriptor type of `$layout` among the types
+/// COLMAP's database holds (binary 256 and 512 bits, SIFT as 128 floats), or returns
+/// [`CliError::UnsupportedDescriptor`].
+macro_rules! with_colmap_descriptor {
+    ($layout:expr, $run:ident($($arg:expr),*)) => {{
+        use ibc_vocab_tree::DescriptorKind;
+        let layout = $layout;
+        match (layout.kind, layout.width) {
+            (DescriptorKind::Binary, 4) => $run::<[u64; 4]>($($arg),*),
+            (DescriptorKind::Binary, 8) => $run::<[u64; 8]>($($arg),*),
+            (DescriptorKind::Float, 128) => $run::<[f32; 128]>($($arg),*),
+            _ => Err(CliError::UnsupportedDescriptor(layout)),
+        }
+    }};
+}
+pub(super) use with_colmap_descriptor;
+
 /// Calls `$run::<D>($args...)` with `D` the descriptor type of `$layout`
 /// ([`ibc_pipeline::data::io::DescriptorLayout`]), or returns
 /// [`CliError::UnsupportedDescriptor`].

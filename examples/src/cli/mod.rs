@@ -134,6 +134,11 @@ pub struct SimulateArgs {
     /// Folder to write map.ibcmap, log.ibclog, camchain.yaml and truth.json into.
     #[arg(long, value_name = "DIR")]
     pub out: PathBuf,
+    /// Also write the map and the log as COLMAP data into `DIR/colmap`: the map as a text
+    /// model (`sparse/`) with `database.db` and `rig_config.json`, the log as `log.db`
+    /// (image names in nanoseconds: calibrate with `--colmap-seconds-per-unit 1e-9`).
+    #[arg(long)]
+    pub colmap: bool,
     /// No progress bars and no summary.
     #[arg(long)]
     pub quiet: bool,
@@ -142,12 +147,23 @@ pub struct SimulateArgs {
 /// Options of `ibc calibrate`.
 #[derive(Debug, Args)]
 pub struct CalibrateArgs {
-    /// The map file (`.ibcmap`).
-    #[arg(long, value_name = "FILE")]
+    /// The map: an ibc map file (`.ibcmap`), or a COLMAP sparse model folder (`sparse/0`,
+    /// text or binary) with `--database`.
+    #[arg(long, value_name = "FILE|DIR")]
     pub map: PathBuf,
-    /// The rig-log file (`.ibclog`).
+    /// The COLMAP database of a COLMAP map (`--map sparse/0`): its images' keypoints and
+    /// descriptors.
+    #[arg(long, value_name = "FILE")]
+    pub database: Option<PathBuf>,
+    /// The rig log: an ibc rig-log file (`.ibclog`), or a COLMAP database of the rig's
+    /// images (frames from its frame table, else `camera/image` names: one frame per image
+    /// name).
     #[arg(long, value_name = "FILE")]
     pub log: PathBuf,
+    /// Seconds per unit of the numbers in a COLMAP log's image names (1e-9 for nanosecond
+    /// names such as `cam0/1403636579763555584.png`).
+    #[arg(long, value_name = "SECONDS", default_value_t = 1.0)]
+    pub colmap_seconds_per_unit: f64,
     /// The cameras: a Kalibr camchain YAML or a CamOdoCal folder (or its extrinsic.txt).
     #[arg(long, value_name = "FILE")]
     pub cameras: PathBuf,

@@ -33,6 +33,9 @@ pub mod output_names {
     pub const TOP_VIEW: &str = "top_view.svg";
     /// The reprojection-error distribution.
     pub const ERRORS: &str = "reprojection_errors.svg";
+    /// The rig for COLMAP's `rig_configurator` (`crate::colmap::rig_config_json`), written
+    /// when every camera has a COLMAP model (not for the unified model).
+    pub const RIG_CONFIG: &str = "rig_config.json";
 }
 
 /// Why the output files could not be written.
@@ -130,6 +133,9 @@ pub(crate) fn write_with_rig(
         check_camera_name(&c.name)?;
     }
     contents.push((dir.join(n::CAMCHAIN), rig.to_kalibr_string()));
+    if let Ok(json) = crate::colmap::rig_config_json(rig) {
+        contents.push((dir.join(n::RIG_CONFIG), json));
+    }
     let camodocal = dir.join(n::CAMODOCAL_DIR);
     for c in &rig.cameras {
         contents.push((
