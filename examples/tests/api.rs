@@ -7,12 +7,14 @@ use ibc_pipeline::calib::{
     CalibrationOptions, FrameSetOptions, HandEyeOptions, InitializationOptions,
     LocalizationOptions, RefinementOptions, VocabularyOptions, calibrate, default_pose_options,
 };
+use ibc_pipeline::colmap::ColmapLogOptions;
 use ibc_pipeline::ibc_hand_eye::Pairing;
 use ibc_pipeline::ibc_pnp::AbsolutePoseOptions;
 use ibc_pipeline::intrinsics::kb_init::KbInitOptions;
 use ibc_pipeline::intrinsics::simulate::BoardSimulationOptions;
 use ibc_pipeline::intrinsics::{IntrinsicModel, IntrinsicsOptions};
 use ibc_pipeline::nalgebra::Isometry3;
+use ibc_pipeline::sfm::{MapOptions, SelfCalibrationOptions};
 use ibc_pipeline::sim::{DetectionOptions, NoiseOptions, Scenario, SimulatedWorld};
 
 #[test]
@@ -72,6 +74,20 @@ fn every_options_struct_is_one_expression() {
         ..Default::default()
     };
     assert!(noise.pixel_sigma_px < detection.max_range_m);
+    let map = MapOptions {
+        refine_extrinsics: true,
+        reconstruction: SelfCalibrationOptions {
+            max_rounds: 3,
+            ..Default::default()
+        },
+        ..Default::default()
+    };
+    assert!(map.refine_extrinsics && map.reconstruction.max_rounds == 3);
+    let colmap = ColmapLogOptions {
+        seconds_per_unit: 1e-9,
+        ..Default::default()
+    };
+    assert!(colmap.rig_id.is_none());
 }
 
 #[test]

@@ -105,6 +105,8 @@ fn selfcalib_and_map_on_a_simulated_garage() {
         "--quiet",
         "--json",
         "--refine-extrinsics",
+        "--colmap",
+        dir.path().join("built-colmap").to_str().unwrap(),
         "--log",
         &path("log.ibclog"),
         "--cameras",
@@ -120,6 +122,18 @@ fn selfcalib_and_map_on_a_simulated_garage() {
         "{summary}"
     );
     assert_eq!(summary["extrinsics"], "refined", "{summary}");
+    // The same map as COLMAP data reads back with every point.
+    let colmap = dir.path().join("built-colmap");
+    let read = ibc_pipeline::colmap::read_colmap_map::<[u64; 4]>(
+        colmap.join("sparse"),
+        colmap.join("database.db"),
+    )
+    .unwrap();
+    assert_eq!(
+        read.map.points.len() as u64,
+        summary["points"].as_u64().unwrap()
+    );
+    assert!(colmap.join("rig_config.json").is_file());
     let cameras = summary["cameras"].as_array().unwrap();
     assert_eq!(cameras.len(), 4, "{summary}");
     for c in cameras {

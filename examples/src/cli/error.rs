@@ -100,6 +100,15 @@ pub enum CliError {
         /// What is wrong with it.
         reason: String,
     },
+    /// `--colmap` asked of a log whose descriptors COLMAP cannot store.
+    #[error(
+        "--colmap: COLMAP databases hold 128-value SIFT or binary descriptors, not this log's \
+         {floats}-value float ones"
+    )]
+    ColmapDescriptor {
+        /// Values per descriptor of the log.
+        floats: usize,
+    },
     /// Standard output could not be written.
     #[error("cannot write to standard output: {0}")]
     Stdout(std::io::Error),

@@ -1,7 +1,12 @@
 //! `ibc map`: the survey phase, a map built from a calibrated rig's log.
 
+use std::path::Path;
+
 use ibc_pipeline::calib::camera_matching::match_cameras;
+use ibc_pipeline::colmap::write_colmap;
+use ibc_pipeline::data::Map;
 use ibc_pipeline::data::io::write_map;
+use ibc_pipeline::ibc_camera_models::Rig;
 use ibc_pipeline::sfm::{MapOptions, build_map};
 use ibc_vocab_tree::Descriptor;
 
@@ -9,7 +14,63 @@ use super::inputs::{log_layout, read_cameras, read_log_checked, with_descriptor}
 use super::progress::Bars;
 use super::{CliError, MapArgs, Outcome, print};
 
-fn run_with<D: Descriptor>(args: &MapArgs, bars: &Bars) -> Result<Outcome, CliError> {
+/// The log's descriptor types, with whether COLMAP can store them.
+trait MapDescriptor: Descriptor {
+    /// Values per descriptor when COLMAP cannot store this type (checked before the map is
+    /// built).
+    const NOT_FOR_COLMAP: Option<usize>;
+    /// Writes `map` as COLMAP data into `dir`.
+    fn write_colmap(
+        dir: &Path,
+        rig: &Rig,
+        map: &Map<Self>,
+        sources: &[(usize, usize)],
+    ) -> Result<(), CliError>;
+}
+
+macro_rules! colmap_descriptor {
+    ($($t:ty),*) => {$(
+        impl MapDescriptor for $t {
+            const NOT_FOR_COLMAP: Option<usize> = None;
+            fn write_colmap(
+                dir: &Path,
+                rig: &Rig,
+                map: &Map<Self>,
+                sources: &[(usize, usize)],
+            ) -> Result<(), CliError> {
+                write_colmap(dir, rig, map, sources)
+                    .map(|_| ())
+                    .map_err(|source| CliError::Colmap {
+                        what: "COLMAP output",
+                        source,
+                    })
+            }
+        }
+    )*};
+}
+colmap_descriptor!([u64; 4], [u64; 8], [f32; 128]);
+
+macro_rules! float_descriptor {
+    ($($n:literal),*) => {$(
+        impl MapDescriptor for [f32; $n] {
+            const NOT_FOR_COLMAP: Option<usize> = Some($n);
+            fn write_colmap(
+                _: &Path,
+                _: &Rig,
+                _: &Map<Self>,
+                _: &[(usize, usize)],
+            ) -> Result<(), CliError> {
+                Err(CliError::ColmapDescriptor { floats: $n })
+            }
+        }
+    )*};
+}
+float_descriptor!(32, 64);
+
+fn run_with<D: MapDescriptor>(args: &MapArgs, bars: &Bars) -> Result<Outcome, CliError> {
+    if let (Some(_), Some(floats)) = (&args.colmap, D::NOT_FOR_COLMAP) {
+        return Err(CliError::ColmapDescriptor { floats });
+    }
     let prior = read_cameras(&args.cameras)?;
     let log = read_log_checked::<D>(&args.log, None, bars)?;
     let (rig, _) = match_cameras(&prior, &log.camera_names)?;
@@ -51,6 +112,14 @@ fn run_with<D: Descriptor>(args: &MapArgs, bars: &Bars) -> Result<Outcome, CliEr
         what: "map",
         source,
     })?;
+    if let Some(dir) = &args.colmap {
+        // The rig as the map was built: its extrinsics relative to the first camera.
+        let mut used = rig.clone();
+        for (camera, pose) in used.cameras.iter_mut().zip(&built.rig_from_camera) {
+            camera.rig_from_camera = *pose;
+        }
+        D::write_colmap(dir, &used, &built.map, &built.image_sources)?;
+    }
     let posed = built.world_from_rig.iter().flatten().count();
     let summary = serde_json::json!({
         "format": "ibc-map-report",

@@ -232,6 +232,10 @@ pub struct MapArgs {
     /// its longest baseline from the first camera); the summary says how far each moved.
     #[arg(long)]
     pub refine_extrinsics: bool,
+    /// Also write the map as COLMAP data into DIR (a text model in `sparse/`, `database.db`,
+    /// `rig_config.json`), all or nothing; for logs with binary or 128-float descriptors.
+    #[arg(long, value_name = "DIR")]
+    pub colmap: Option<PathBuf>,
     /// Print a JSON summary on standard output instead of the line.
     #[arg(long)]
     pub json: bool,
