@@ -73,12 +73,17 @@ fn selfcalib_and_map_on_a_simulated_garage() {
         [
             "camchain-calibrated.yaml",
             "camodocal",
+            "colmap",
             "report.json",
             "report.txt",
             "rig_config.json",
             "top_view.svg"
         ]
     );
+    // The calibration as a COLMAP model: the four cameras and one rig.
+    let model = ibc_pipeline::colmap::read_model(out.join("colmap")).unwrap();
+    assert_eq!((model.cameras.len(), model.rigs.len()), (4, 1));
+    assert!(model.images.is_empty() && model.points3d.is_empty());
     assert_eq!(entries(&out.join("camodocal")).len(), 5);
     let svg = std::fs::read_to_string(out.join("top_view.svg")).unwrap();
     assert!(svg.starts_with("<svg") && svg.matches("<circle").count() > 1000);

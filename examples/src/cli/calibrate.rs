@@ -10,7 +10,7 @@ use ibc_pipeline::colmap::{
 };
 use ibc_pipeline::data::io::{read_descriptor_layout, read_map};
 use ibc_pipeline::data::{GroundTruth, Map, RigLog};
-use ibc_pipeline::report::{Report, output_names, text_table, write_outputs};
+use ibc_pipeline::report::{Report, text_table, write_outputs};
 use ibc_vocab_tree::{Descriptor, Vocabulary};
 
 use super::inputs::{
@@ -18,7 +18,7 @@ use super::inputs::{
     with_descriptor,
 };
 use super::progress::Bars;
-use super::{CalibrateArgs, CliError, Outcome, print};
+use super::{CalibrateArgs, CliError, Outcome, print, wrote_line};
 
 /// Builds the report, writes the output files when `out` is given, prints the table (or the
 /// JSON report), says where the files went (after the table; on standard error with `json`
@@ -31,21 +31,11 @@ pub fn finish(
     quiet: bool,
 ) -> Result<Outcome, CliError> {
     let report = Report::new(calibration, truth)?;
-    let written = out
-        .map(|dir| write_outputs(dir, calibration, &report).map(|_| dir))
+    let wrote = out
+        .map(|dir| {
+            write_outputs(dir, calibration, &report).map(|written| wrote_line(dir, &written))
+        })
         .transpose()?;
-    let wrote = written.map(|dir| {
-        format!(
-            "wrote {} ({}, {}, {}, {}/, {}, {})\n",
-            dir.display(),
-            output_names::REPORT_JSON,
-            output_names::REPORT_TEXT,
-            output_names::CAMCHAIN,
-            output_names::CAMODOCAL_DIR,
-            output_names::TOP_VIEW,
-            output_names::ERRORS
-        )
-    });
     if json {
         print(&(report.to_json() + "\n"))?;
         if let (Some(line), false) = (&wrote, quiet) {

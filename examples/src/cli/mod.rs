@@ -11,7 +11,7 @@ mod selfcalib;
 mod simulate;
 
 use std::io::Write as _;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use ibc_pipeline::calib::{CalibrationOptions, HandEyeMethod, HandEyeOptions};
@@ -242,6 +242,25 @@ pub struct MapArgs {
     /// No progress bars.
     #[arg(long)]
     pub quiet: bool,
+}
+
+/// "wrote DIR (a, b, c/)": the entries of `dir` among the `written` paths, in the order
+/// written, a folder once with a slash.
+fn wrote_line(dir: &Path, written: &[PathBuf]) -> String {
+    let mut names: Vec<String> = Vec::new();
+    for path in written {
+        let Ok(rest) = path.strip_prefix(dir) else {
+            continue;
+        };
+        let mut parts = rest.components();
+        let Some(first) = parts.next() else { continue };
+        let name = first.as_os_str().to_string_lossy().into_owned()
+            + if parts.next().is_some() { "/" } else { "" };
+        if !names.contains(&name) {
+            names.push(name);
+        }
+    }
+    format!("wrote {} ({})\n", dir.display(), names.join(", "))
 }
 
 /// Writes `text` to standard output.

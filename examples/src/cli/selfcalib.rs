@@ -1,15 +1,13 @@
 //! `ibc selfcalib`: a rig's extrinsics from its own log, without a map.
 
 use ibc_pipeline::calib::camera_matching::match_cameras;
-use ibc_pipeline::report::{
-    SelfCalibrationReport, output_names, self_calibrated_rig, write_selfcalib_outputs,
-};
+use ibc_pipeline::report::{SelfCalibrationReport, self_calibrated_rig, write_selfcalib_outputs};
 use ibc_pipeline::sfm::{ScaleSource, SelfCalibrationOptions, self_calibrate};
 use ibc_vocab_tree::Descriptor;
 
 use super::inputs::{log_layout, read_cameras, read_log_checked, read_truth_arg, with_descriptor};
 use super::progress::Bars;
-use super::{CliError, Outcome, SelfCalibArgs, print};
+use super::{CliError, Outcome, SelfCalibArgs, print, wrote_line};
 
 /// Parses `--baseline CAM_A:CAM_B=METRES` against the log's camera names.
 fn baseline(text: &str, names: &[String]) -> Result<ScaleSource, CliError> {
@@ -69,21 +67,13 @@ fn run_with<D: Descriptor>(args: &SelfCalibArgs, bars: &Bars) -> Result<Outcome,
     bars.done();
     let result = result?;
     let report = SelfCalibrationReport::new(&result, &log.camera_names, &cameras, truth.as_ref());
-    write_selfcalib_outputs(
+    let written = write_selfcalib_outputs(
         &args.out,
         &report,
         &result,
         &self_calibrated_rig(&rig, &log.camera_names, &result),
     )?;
-    let wrote = format!(
-        "wrote {} ({}, {}, {}, {}, {}/)\n",
-        args.out.display(),
-        output_names::REPORT_JSON,
-        output_names::REPORT_TEXT,
-        output_names::TOP_VIEW,
-        output_names::CAMCHAIN,
-        output_names::CAMODOCAL_DIR
-    );
+    let wrote = wrote_line(&args.out, &written);
     if args.json {
         print(&(report.to_json() + "\n"))?;
         if !args.quiet {

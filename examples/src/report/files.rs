@@ -36,6 +36,9 @@ pub mod output_names {
     /// The rig for COLMAP's `rig_configurator` (`crate::colmap::rig_config_json`), written
     /// when every camera has a COLMAP model (not for the unified model).
     pub const RIG_CONFIG: &str = "rig_config.json";
+    /// The calibration as a COLMAP text model (its cameras and rig; no images or points),
+    /// written with [`RIG_CONFIG`].
+    pub const COLMAP_MODEL_DIR: &str = "colmap";
 }
 
 /// Why the output files could not be written.
@@ -135,6 +138,17 @@ pub(crate) fn write_with_rig(
     contents.push((dir.join(n::CAMCHAIN), rig.to_kalibr_string()));
     if let Ok(json) = crate::colmap::rig_config_json(rig) {
         contents.push((dir.join(n::RIG_CONFIG), json));
+    }
+    // The calibration as a COLMAP text model: its cameras and its rig, no images or points.
+    let empty: crate::data::Map<[u64; 4]> = crate::data::Map {
+        points: Vec::new(),
+        images: Vec::new(),
+    };
+    if let Ok(export) = crate::colmap::colmap_from_map(rig, &empty, &[], dir) {
+        let model = dir.join(n::COLMAP_MODEL_DIR);
+        for (name, text) in crate::colmap::model_to_text(&export.model) {
+            contents.push((model.join(name), text));
+        }
     }
     let camodocal = dir.join(n::CAMODOCAL_DIR);
     for c in &rig.cameras {
