@@ -209,16 +209,23 @@ impl ColmapDatabase {
             .map_err(|e| self.sql(e))
     }
 
+    /// Every row of `query` (no parameters), each read by `row`; SQLite's errors name the
+    /// database.
+    fn rows<T>(
+        &self,
+        query: &str,
+        row: impl FnMut(&rusqlite::Row<'_>) -> rusqlite::Result<T>,
+    ) -> Result<Vec<T>> {
+        let mut stmt = self.connection.prepare(query).map_err(|e| self.sql(e))?;
+        let rows = stmt.query_map([], row).map_err(|e| self.sql(e))?;
+        rows.collect::<rusqlite::Result<Vec<T>>>()
+            .map_err(|e| self.sql(e))
+    }
+
     fn has_column(&self, table: &str, column: &str) -> Result<bool> {
-        let mut stmt = self
-            .connection
-            .prepare(&format!("PRAGMA table_info({table})"))
-            .map_err(|e| self.sql(e))?;
-        let names = stmt
-            .query_map([], |r| r.get::<_, String>(1))
-            .map_err(|e| self.sql(e))?
-            .collect::<Result<Vec<_>, _>>()
-            .map_err(|e| self.sql(e))?;
+        let names = self.rows(&format!("PRAGMA table_info({table})"), |r| {
+            r.get::<_, String>(1)
+        })?;
         Ok(names.iter().any(|n| n == column))
     }
 
@@ -232,14 +239,9 @@ impl ColmapDatabase {
     /// [`ColmapError::Database`], [`ColmapError::UnknownCameraModel`], [`ColmapError::Invalid`]
     /// for a parameter blob of the wrong length.
     pub fn cameras(&self) -> Result<Vec<ColmapCamera>> {
-        let mut stmt = self
-            .connection
-            .prepare(
-                "SELECT camera_id, model, width, height, params FROM cameras ORDER BY camera_id",
-            )
-            .map_err(|e| self.sql(e))?;
-        let rows = stmt
-            .query_map([], |r| {
+        let rows = self.rows(
+            "SELECT camera_id, model, width, height, params FROM cameras ORDER BY camera_id",
+            |r| {
                 Ok((
                     r.get::<_, i64>(0)?,
                     r.get::<_, i64>(1)?,
@@ -247,11 +249,10 @@ impl ColmapDatabase {
                     r.get::<_, i64>(3)?,
                     r.get::<_, Option<Vec<u8>>>(4)?,
                 ))
-            })
-            .map_err(|e| self.sql(e))?;
+            },
+        )?;
         let mut cameras = Vec::new();
-        for row in rows {
-            let (id, code, width, height, blob) = row.map_err(|e| self.sql(e))?;
+        for (id, code, width, height, blob) in rows {
             let camera_id = self.id(id, "camera id")?;
             let model = ColmapCameraModel::from_id(code).ok_or_else(|| {
                 ColmapError::UnknownCameraModel {
@@ -288,22 +289,18 @@ impl ColmapDatabase {
     /// # Errors
     /// [`ColmapError::Database`], [`ColmapError::Invalid`] for an id out of range.
     pub fn images(&self) -> Result<Vec<DatabaseImage>> {
-        let mut stmt = self
-            .connection
-            .prepare("SELECT image_id, name, camera_id FROM images ORDER BY image_id")
-            .map_err(|e| self.sql(e))?;
-        let rows = stmt
-            .query_map([], |r| {
+        let rows = self.rows(
+            "SELECT image_id, name, camera_id FROM images ORDER BY image_id",
+            |r| {
                 Ok((
                     r.get::<_, i64>(0)?,
                     r.get::<_, String>(1)?,
                     r.get::<_, i64>(2)?,
                 ))
-            })
-            .map_err(|e| self.sql(e))?;
+            },
+        )?;
         let mut images = Vec::new();
-        for row in rows {
-            let (id, name, camera) = row.map_err(|e| self.sql(e))?;
+        for (id, name, camera) in rows {
             images.push(DatabaseImage {
                 image_id: self.id(id, "image id")?,
                 name,
@@ -323,48 +320,36 @@ impl ColmapDatabase {
             return Ok(Vec::new());
         }
         let mut rigs = Vec::new();
-        {
-            let mut stmt = self
-                .connection
-                .prepare("SELECT rig_id, ref_sensor_id, ref_sensor_type FROM rigs ORDER BY rig_id")
-                .map_err(|e| self.sql(e))?;
-            let rows = stmt
-                .query_map([], |r| {
-                    Ok((
-                        r.get::<_, i64>(0)?,
-                        r.get::<_, i64>(1)?,
-                        r.get::<_, i64>(2)?,
-                    ))
-                })
-                .map_err(|e| self.sql(e))?;
-            for row in rows {
-                let (rig, id, kind) = row.map_err(|e| self.sql(e))?;
-                rigs.push(ColmapRig {
-                    rig_id: self.id(rig, "rig id")?,
-                    ref_sensor: self.sensor(kind, id)?,
-                    sensors: Vec::new(),
-                });
-            }
+        let rows = self.rows(
+            "SELECT rig_id, ref_sensor_id, ref_sensor_type FROM rigs ORDER BY rig_id",
+            |r| {
+                Ok((
+                    r.get::<_, i64>(0)?,
+                    r.get::<_, i64>(1)?,
+                    r.get::<_, i64>(2)?,
+                ))
+            },
+        )?;
+        for (rig, id, kind) in rows {
+            rigs.push(ColmapRig {
+                rig_id: self.id(rig, "rig id")?,
+                ref_sensor: self.sensor(kind, id)?,
+                sensors: Vec::new(),
+            });
         }
-        let mut stmt = self
-            .connection
-            .prepare(
-                "SELECT rig_id, sensor_id, sensor_type, sensor_from_rig FROM rig_sensors \
-                 ORDER BY rig_id, sensor_type, sensor_id",
-            )
-            .map_err(|e| self.sql(e))?;
-        let rows = stmt
-            .query_map([], |r| {
+        let rows = self.rows(
+            "SELECT rig_id, sensor_id, sensor_type, sensor_from_rig FROM rig_sensors \
+             ORDER BY rig_id, sensor_type, sensor_id",
+            |r| {
                 Ok((
                     r.get::<_, i64>(0)?,
                     r.get::<_, i64>(1)?,
                     r.get::<_, i64>(2)?,
                     r.get::<_, Option<Vec<u8>>>(3)?,
                 ))
-            })
-            .map_err(|e| self.sql(e))?;
-        for row in rows {
-            let (rig_id, id, kind, blob) = row.map_err(|e| self.sql(e))?;
+            },
+        )?;
+        for (rig_id, id, kind, blob) in rows {
             let sensor = self.sensor(kind, id)?;
             let pose = match blob {
                 None => None,
@@ -414,43 +399,31 @@ impl ColmapDatabase {
         }
         let mut frames = Vec::new();
         let mut index = HashMap::new();
-        {
-            let mut stmt = self
-                .connection
-                .prepare("SELECT frame_id, rig_id FROM frames ORDER BY frame_id")
-                .map_err(|e| self.sql(e))?;
-            let rows = stmt
-                .query_map([], |r| Ok((r.get::<_, i64>(0)?, r.get::<_, i64>(1)?)))
-                .map_err(|e| self.sql(e))?;
-            for row in rows {
-                let (frame, rig) = row.map_err(|e| self.sql(e))?;
-                index.insert(frame, frames.len());
-                frames.push(DatabaseFrame {
-                    frame_id: self.id(frame, "frame id")?,
-                    rig_id: self.id(rig, "rig id")?,
-                    data: Vec::new(),
-                });
-            }
+        let rows = self.rows(
+            "SELECT frame_id, rig_id FROM frames ORDER BY frame_id",
+            |r| Ok((r.get::<_, i64>(0)?, r.get::<_, i64>(1)?)),
+        )?;
+        for (frame, rig) in rows {
+            index.insert(frame, frames.len());
+            frames.push(DatabaseFrame {
+                frame_id: self.id(frame, "frame id")?,
+                rig_id: self.id(rig, "rig id")?,
+                data: Vec::new(),
+            });
         }
-        let mut stmt = self
-            .connection
-            .prepare(
-                "SELECT frame_id, data_id, sensor_id, sensor_type FROM frame_data \
-                 ORDER BY frame_id, sensor_type, sensor_id",
-            )
-            .map_err(|e| self.sql(e))?;
-        let rows = stmt
-            .query_map([], |r| {
+        let rows = self.rows(
+            "SELECT frame_id, data_id, sensor_id, sensor_type FROM frame_data \
+             ORDER BY frame_id, sensor_type, sensor_id",
+            |r| {
                 Ok((
                     r.get::<_, i64>(0)?,
                     r.get::<_, i64>(1)?,
                     r.get::<_, i64>(2)?,
                     r.get::<_, i64>(3)?,
                 ))
-            })
-            .map_err(|e| self.sql(e))?;
-        for row in rows {
-            let (frame, data, id, kind) = row.map_err(|e| self.sql(e))?;
+            },
+        )?;
+        for (frame, data, id, kind) in rows {
             let sensor = self.sensor(kind, id)?;
             let data = u64::try_from(data).map_err(|_| self.invalid(format!("data id {data}")))?;
             let &i = index.get(&frame).ok_or_else(|| {
