@@ -94,16 +94,7 @@ pub fn colmap_from_map<D>(
             map.images.len()
         )));
     }
-    let cameras = rig
-        .cameras
-        .iter()
-        .enumerate()
-        .map(|(i, c)| ColmapCamera::from_ibc(id(i), &c.name, &c.camera))
-        .collect::<Result<Vec<_>>>()?;
-    let sensor = |c: usize| Sensor {
-        kind: SensorKind::Camera,
-        id: id(c),
-    };
+    let cameras = colmap_cameras(rig.cameras.iter())?;
     let rig_from_ref = rig.cameras[0].rig_from_camera;
     let camera_from_ref: Vec<Isometry3<f64>> = rig
         .cameras
@@ -330,15 +321,7 @@ pub fn log_database_bytes<D: ColmapDescriptor>(
                 .ok_or_else(|| invalid(format!("the rig has no camera {name:?} of the log")))?,
         );
     }
-    let cameras = rig_cameras
-        .iter()
-        .enumerate()
-        .map(|(i, c)| ColmapCamera::from_ibc(id(i), &c.name, &c.camera))
-        .collect::<Result<Vec<_>>>()?;
-    let sensor = |c: usize| Sensor {
-        kind: SensorKind::Camera,
-        id: id(c),
-    };
+    let cameras = colmap_cameras(rig_cameras.iter().copied())?;
     let colmap_rig = ColmapRig {
         rig_id: 1,
         ref_sensor: sensor(0),
@@ -407,4 +390,22 @@ pub fn write_colmap_log<D: ColmapDescriptor>(
     let path = path.as_ref();
     let bytes = log_database_bytes(path, rig, log)?;
     Ok(ibc_camera_models::io::write_atomically(path, &bytes)?)
+}
+
+/// The COLMAP cameras of a rig's cameras, ids from 1 in order.
+fn colmap_cameras<'a>(
+    cameras: impl Iterator<Item = &'a ibc_camera_models::RigCamera>,
+) -> Result<Vec<ColmapCamera>> {
+    cameras
+        .enumerate()
+        .map(|(i, c)| ColmapCamera::from_ibc(id(i), &c.name, &c.camera))
+        .collect()
+}
+
+/// Camera `c` of the rig (0-based) as a COLMAP sensor.
+fn sensor(c: usize) -> Sensor {
+    Sensor {
+        kind: SensorKind::Camera,
+        id: id(c),
+    }
 }
