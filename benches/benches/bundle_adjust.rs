@@ -11,10 +11,10 @@ use std::time::Duration;
 
 use criterion::{BatchSize, Criterion, criterion_group, criterion_main};
 use ibc_bundle_adjust::{
-    BalProblem, LinearSolverType, RigObservation, RigRefinement, RigRefinementOptions, RobustLoss,
-    SolverOptions,
+    BalProblem, LinearSolverType, OnlineCalibrator, OnlineEvent, OnlineFrameSet, OnlineObservation,
+    OnlineOptions, RigObservation, RigRefinement, RigRefinementOptions, RobustLoss, SolverOptions,
 };
-use ibc_camera_models::{Camera, CameraModel, KannalaBrandt, PinholeRadtan};
+use ibc_camera_models::{Camera, CameraModel, KannalaBrandt, PinholeRadtan, Rig, RigCamera};
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector2, Vector3};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -97,11 +97,11 @@ fn random_rotation(rng: &mut ChaCha8Rng, angle: f64) -> UnitQuaternion<f64> {
     UnitQuaternion::from_scaled_axis(axis.normalize() * angle)
 }
 
-/// 4 cameras x 500 frame sets x 20 points per image = 40,000 observations, 0.5 px noise,
-/// 2 % wrong matches, perturbed extrinsics and rig poses.
-fn rig_scene() -> RigRefinement {
+/// 4 cameras x `frames` frame sets x `per_image` points per image (500 x 20: 40,000
+/// observations), 0.5 px noise, 2 % wrong matches, perturbed extrinsics and rig poses.
+fn rig_scene(frames: usize, per_image: usize) -> RigRefinement {
     let mut rng = ChaCha8Rng::seed_from_u64(7);
-    let (cams, frames, per_image) = (4, 500, 20);
+    let cams = 4;
     let mut cameras: Vec<Camera> = Vec::new();
     let mut rig_from_camera = Vec::new();
     for c in 0..cams {
@@ -198,7 +198,7 @@ fn rig_scene() -> RigRefinement {
 }
 
 fn rig(c: &mut Criterion) {
-    let scene = rig_scene();
+    let scene = rig_scene(500, 20);
     assert_eq!(scene.observations.len(), 40_000);
     let mut g = c.benchmark_group("rig_4x500x40000");
     g.sample_size(20).measurement_time(Duration::from_secs(8));
@@ -218,5 +218,83 @@ fn rig(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, bal49, rig);
+/// An online update (`OnlineCalibrator`, focal lengths and extrinsics, PCG, one thread) of a
+/// 50-frame-set window of 4 cameras x 50 or 100 correspondences, warm-started by the update ten
+/// frame sets before (the calibrator's rhythm), against the extrinsics-only rig refinement of
+/// the same window from the same start with the same solver.
+fn online(c: &mut Criterion) {
+    for per_image in [50, 100] {
+        online_window(c, per_image);
+    }
+}
+
+fn online_window(c: &mut Criterion, per_image: usize) {
+    let scene = rig_scene(60, per_image);
+    let rig = Rig::new(
+        scene
+            .cameras
+            .iter()
+            .zip(&scene.rig_from_camera)
+            .enumerate()
+            .map(|(i, (camera, pose))| RigCamera::new(format!("cam{i}"), camera.clone(), *pose))
+            .collect(),
+    );
+    let options = OnlineOptions::default();
+    let mut calibrator = OnlineCalibrator::new(&rig, options.clone()).unwrap();
+    let mut sets: Vec<OnlineFrameSet> = scene
+        .world_from_rig
+        .iter()
+        .map(|&world_from_rig| OnlineFrameSet {
+            world_from_rig,
+            observations: Vec::new(),
+        })
+        .collect();
+    for o in &scene.observations {
+        sets[o.frame].observations.push(OnlineObservation {
+            camera: o.camera,
+            world_point: o.world_point,
+            pixel: o.pixel,
+        });
+    }
+    let last = sets.pop().unwrap();
+    for (i, set) in sets.into_iter().enumerate() {
+        let event = calibrator.push(set).unwrap();
+        assert_eq!(
+            matches!(event, OnlineEvent::Updated(_)),
+            i == 49,
+            "{event:?}"
+        );
+    }
+    // The baseline: the same window, from the same start.
+    let mut window = scene.clone();
+    window.world_from_rig.drain(..10);
+    window.observations.retain(|o| o.frame >= 10);
+    for o in &mut window.observations {
+        o.frame -= 10;
+    }
+    window.cameras = calibrator.cameras().to_vec();
+    window.rig_from_camera = calibrator.rig_from_camera().to_vec();
+    let mut g = c.benchmark_group(format!("online_50x4x{per_image}"));
+    g.sample_size(20);
+    g.bench_function("update (focal + extrinsics, PCG, 1 thread)", |b| {
+        b.iter_batched(
+            || (calibrator.clone(), last.clone()),
+            |(mut calibrator, last)| {
+                let event = calibrator.push(last).unwrap();
+                assert!(matches!(event, OnlineEvent::Updated(_)), "{event:?}");
+            },
+            BatchSize::LargeInput,
+        )
+    });
+    let extrinsics_only = RigRefinementOptions {
+        covariance: false,
+        ..options.refinement.clone()
+    };
+    g.bench_function("rig refinement, extrinsics only (baseline)", |b| {
+        b.iter(|| black_box(window.refine(&extrinsics_only).unwrap().final_rms))
+    });
+    g.finish();
+}
+
+criterion_group!(benches, bal49, rig, online);
 criterion_main!(benches);

@@ -16,14 +16,14 @@
 use std::hint::black_box;
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use ibc_bundle_adjust::{RigObservation, RigRefinement, RigRefinementOptions};
+use ibc_bundle_adjust::{IntrinsicsSelection, RigObservation, RigRefinement, RigRefinementOptions};
 use ibc_camera_models::CameraModel;
 use ibc_pipeline::calib::localization::match_to_map;
 use ibc_pipeline::calib::quality::{RefinementFacts, assess};
 use ibc_pipeline::calib::refinement::reprojection_residuals;
 use ibc_pipeline::calib::{
-    CalibrationOptions, MapIndex, calibrate, calibrate_hand_eye, initialize, localize_image,
-    localize_log, refine, select_frame_sets,
+    CalibrationOptions, MapIndex, RefinementOptions, calibrate, calibrate_hand_eye, initialize,
+    localize_image, localize_log, refine, select_frame_sets,
 };
 use ibc_pipeline::calib::{HandEyeSolver, NoProgress};
 use ibc_pipeline::data::{BinaryDescriptor, Map};
@@ -268,6 +268,10 @@ fn stages(c: &mut Criterion) {
         covariance: true,
         prior_rig_from_camera: &prior,
         rig_from_camera: &calibration.refinement.rig_from_camera,
+        intrinsics: (
+            &calibration.refinement.cameras,
+            &calibration.refinement.intrinsics,
+        ),
     };
     assert_eq!(assess(&facts).warnings, calibration.quality.warnings);
     g.bench_function("quality gates (40k correspondences)", |b| {
@@ -283,6 +287,23 @@ fn stages(c: &mut Criterion) {
     g.bench_function("calibrate: everything (100 frames x 4 cameras)", |b| {
         b.iter(|| calibrate(&world.map, &world.log, &world.map_rig, &options).unwrap())
     });
+    // The same with the intrinsics refined too (`--refine-intrinsics`): against the line above.
+    for (name, selection) in [
+        ("focal+center", IntrinsicsSelection::FocalAndCenter),
+        ("all", IntrinsicsSelection::All),
+    ] {
+        let with = CalibrationOptions {
+            refinement: RefinementOptions {
+                intrinsics: selection,
+                ..Default::default()
+            },
+            ..Default::default()
+        };
+        g.bench_function(
+            format!("calibrate: everything, --refine-intrinsics {name}"),
+            |b| b.iter(|| calibrate(&world.map, &world.log, &world.map_rig, &with).unwrap()),
+        );
+    }
     g.finish();
 }
 

@@ -13,6 +13,7 @@ mod kernels;
 pub mod levenberg_marquardt;
 mod linear_solver;
 pub mod manifold;
+pub mod online;
 mod options;
 mod parallel;
 mod pcg;
@@ -44,10 +45,15 @@ pub use full_ba::{
     Gauge, SCALE_PRIOR_WEIGHT,
 };
 pub use manifold::{Manifold, Se3Manifold, UnitQuaternionManifold};
+pub use online::{
+    OnlineCalibrator, OnlineEvent, OnlineFrameSet, OnlineObservation, OnlineOptions, OnlineUpdate,
+    SkipReason,
+};
 pub use options::{AUTO_DENSE_MAX_DIM, AUTO_SPARSE_MAX_DIM, LinearSolverType, SolverOptions};
 pub use problem::{ParameterBlockId, Problem, ResidualBlockId};
 pub use rig::{
-    RigObservation, RigProblem, RigRefinement, RigRefinementOptions, RigRefinementResult,
+    IntrinsicsSelection, RigObservation, RigProblem, RigRefinement, RigRefinementOptions,
+    RigRefinementResult,
 };
 pub use rig_bundle_adjustment::{
     ParameterObservability, RigBaObservation, RigBundleAdjustment, RigBundleAdjustmentOptions,

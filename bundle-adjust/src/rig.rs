@@ -4,9 +4,14 @@
 //!
 //! Minimizes Σ ρ(|π_c(camera_from_rig_c · rig_from_world_i · X) − x|²) over the extrinsics
 //! `rig_from_camera_c` (one per camera) and the rig poses `world_from_rig_i` (one per frame
-//! set), with the map points X fixed and any [`ibc_camera_models`] camera with fixed
-//! intrinsics. Poses live on [`Se3Manifold`]; the rig poses are eliminated by the Schur
-//! complement, so the reduced system only holds the extrinsics.
+//! set), with the map points X fixed and any [`ibc_camera_models`] camera; optionally also over
+//! a selection of each camera's intrinsics ([`IntrinsicsSelection`], shared by all its images:
+//! InfrasCal's intrinsics against a prior map, TrimBot2020 D3.1 §3.3.2), minus the parameters
+//! the caller holds ([`RigRefinementOptions::held_intrinsics`]). Poses live on
+//! [`Se3Manifold`]; the rig poses are eliminated by the Schur complement, so the reduced system
+//! only holds the extrinsics and the free intrinsics. With free intrinsics the covariance comes
+//! with a per-parameter observability figure (as [`crate::RigBundleAdjustment`]'s), so a caller
+//! can hold what the data does not determine and solve again.
 //!
 //! **Gauge.** Moving the rig frame by any rigid motion T (world_from_rig · T,
 //! T⁻¹ · rig_from_camera) leaves every prediction unchanged. The gauge is fixed by holding the
@@ -24,7 +29,7 @@
 use std::sync::Arc;
 
 use ibc_camera_models::{Camera, CameraModel, Rig};
-use nalgebra::{Isometry3, Matrix2x3, Matrix3, Matrix6, SMatrix, Vector2, Vector3};
+use nalgebra::{DMatrix, Isometry3, Matrix2x3, Matrix3, Matrix6, SMatrix, Vector2, Vector3};
 
 use crate::corrector::validate_loss;
 use crate::cost::{CostFunction, EvaluationProbe, Jacobians};
@@ -32,6 +37,13 @@ use crate::error::{BundleAdjustError, Result};
 use crate::manifold::{Se3Manifold, se3_from_params, se3_from_unit_params, se3_to_params, skew};
 use crate::options::SolverOptions;
 use crate::problem::{ParameterBlockId, Problem};
+use crate::rig_ba_cost::{
+    Intrinsics, free_intrinsics, full_intrinsic_covariance, refined_cameras,
+    validate_held_intrinsics,
+};
+use crate::rig_bundle_adjustment::{
+    CameraBlock, EXTRINSIC_NAMES, ParameterObservability, analyse_camera_blocks,
+};
 use crate::summary::Summary;
 use crate::{NonExhaustive, RobustLoss};
 
@@ -83,13 +95,56 @@ pub struct RigRefinementOptions {
     pub loss: RobustLoss,
     /// The camera whose extrinsic is held at its initial value to fix the gauge (default 0).
     pub reference_camera: usize,
-    /// Compute the covariance of the extrinsics at the solution (default true).
+    /// Compute the covariance of the extrinsics at the solution (default true), and with free
+    /// intrinsics the covariance and observability of every free camera parameter.
     pub covariance: bool,
+    /// The intrinsics refined with the extrinsics, the same set for every camera (default
+    /// [`IntrinsicsSelection::None`]: intrinsics held, the paper's refinement).
+    pub intrinsics: IntrinsicsSelection,
+    /// Intrinsic parameters held at their start values although
+    /// [`intrinsics`](Self::intrinsics) selects them: `(camera, parameter index in CamOdoCal
+    /// order)` (default none), for parameters the data does not determine.
+    pub held_intrinsics: Vec<(usize, usize)>,
     /// Solver options (default [`SolverOptions::default`], Ceres's defaults).
     pub solver: SolverOptions,
     /// Keeps the struct open to new fields: write it with `..Default::default()`.
     #[doc(hidden)]
     pub non_exhaustive: NonExhaustive,
+}
+
+/// Which intrinsic parameters of each camera a refinement frees (the rest are held at the
+/// camera's values). Indices follow [`CameraModel::focal_length_indices`] and
+/// [`CameraModel::principal_point_indices`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum IntrinsicsSelection {
+    /// Every intrinsic held.
+    #[default]
+    None,
+    /// The two focal lengths.
+    Focal,
+    /// The focal lengths and the principal point.
+    FocalAndCenter,
+    /// Every parameter of the model (distortion included).
+    All,
+}
+
+impl IntrinsicsSelection {
+    /// The selected parameters' indices (CamOdoCal order, ascending) for `camera`'s model.
+    #[must_use]
+    pub fn indices(self, camera: &Camera) -> Vec<usize> {
+        let mut indices = match self {
+            Self::None => Vec::new(),
+            Self::Focal => camera.focal_length_indices().to_vec(),
+            Self::FocalAndCenter => {
+                let mut v = camera.focal_length_indices().to_vec();
+                v.extend(camera.principal_point_indices());
+                v
+            }
+            Self::All => (0..camera.num_params()).collect(),
+        };
+        indices.sort_unstable();
+        indices
+    }
 }
 
 impl Default for RigRefinementOptions {
@@ -98,6 +153,8 @@ impl Default for RigRefinementOptions {
             loss: RobustLoss::Cauchy { scale: 1.0 },
             reference_camera: 0,
             covariance: true,
+            intrinsics: IntrinsicsSelection::None,
+            held_intrinsics: Vec::new(),
             solver: SolverOptions::default(),
             non_exhaustive: NonExhaustive(()),
         }
@@ -112,10 +169,20 @@ pub struct RigRefinementResult {
     pub rig_from_camera: Vec<Isometry3<f64>>,
     /// Refined rig poses.
     pub world_from_rig: Vec<Isometry3<f64>>,
+    /// The cameras with their refined intrinsics (the start ones where held).
+    pub cameras: Vec<Camera>,
     /// Covariance of each extrinsic in its right tangent `[ρ, φ]` (metres, radians) for unit
     /// pixel noise, `None` for the reference camera or when not requested or undefined.
     /// Multiply by σ² for a pixel noise σ.
     pub extrinsic_covariance: Vec<Option<Matrix6<f64>>>,
+    /// Covariance of each camera's intrinsics (all its parameters in CamOdoCal order, zero
+    /// rows and columns for held ones) for unit pixel noise; `None` when none is free, when
+    /// not requested or when undefined (a direction the data does not determine).
+    pub intrinsic_covariance: Vec<Option<DMatrix<f64>>>,
+    /// With free intrinsics and [`RigRefinementOptions::covariance`]: the uncertainty and
+    /// observability of every free camera parameter, camera by camera, extrinsic then
+    /// intrinsics (defined as for [`crate::RigBundleAdjustment`]); otherwise empty.
+    pub observability: Vec<ParameterObservability>,
     /// Root-mean-square reprojection error (pixels) at the start, over the observations used.
     pub initial_rms: f64,
     /// Root-mean-square reprojection error (pixels) at the solution, over the observations
@@ -130,8 +197,8 @@ pub struct RigRefinementResult {
 }
 
 impl RigRefinementResult {
-    /// `rig` with its cameras' extrinsics replaced by the refined ones (intrinsics, names and
-    /// the rest unchanged).
+    /// `rig` with its cameras' extrinsics and intrinsics replaced by the refined ones (names
+    /// and the rest unchanged).
     ///
     /// # Errors
     /// [`BundleAdjustError::LengthMismatch`] when `rig` does not have one camera per refined
@@ -145,8 +212,14 @@ impl RigRefinementResult {
             });
         }
         let mut refined = rig.clone();
-        for (camera, pose) in refined.cameras.iter_mut().zip(&self.rig_from_camera) {
+        for ((camera, pose), model) in refined
+            .cameras
+            .iter_mut()
+            .zip(&self.rig_from_camera)
+            .zip(&self.cameras)
+        {
             camera.rig_from_camera = *pose;
+            camera.camera = model.clone();
         }
         Ok(refined)
     }
@@ -162,16 +235,21 @@ pub struct RigProblem {
     pub world_from_rig: Vec<ParameterBlockId>,
     /// The SE(3) block of each camera's `rig_from_camera` (the reference camera's constant).
     pub rig_from_camera: Vec<ParameterBlockId>,
+    /// Per camera, the block of its free intrinsics and their indices (CamOdoCal order).
+    pub intrinsics: Vec<Option<(ParameterBlockId, Vec<usize>)>>,
     /// Indices of the observations left out (see
     /// [`RigRefinementResult::excluded_observations`]).
     pub excluded_observations: Vec<usize>,
 }
 
 /// The reprojection residual of one rig observation; arguments
-/// `[world_from_rig (7, SE(3)), rig_from_camera (7, SE(3))]`.
+/// `[world_from_rig (7, SE(3)), rig_from_camera (7, SE(3))]` and, with free intrinsics,
+/// `[.., intrinsics (free count)]`.
 struct RigReprojection {
-    cameras: Arc<[Camera]>,
-    camera: usize,
+    intrinsics: Intrinsics,
+    /// The argument sizes: `[7, 7]` or `[7, 7, free intrinsics]`.
+    sizes: [usize; 3],
+    n_args: usize,
     world_point: Vector3<f64>,
     pixel: Vector2<f64>,
 }
@@ -182,7 +260,7 @@ impl CostFunction for RigReprojection {
     }
 
     fn parameter_block_sizes(&self) -> &[usize] {
-        &[7, 7]
+        &self.sizes[..self.n_args]
     }
 
     fn evaluate(
@@ -199,16 +277,17 @@ impl CostFunction for RigReprojection {
         let p_cam = rig_from_camera
             .inverse_transform_point(&p_rig.into())
             .coords;
-        let camera = &self.cameras[self.camera];
+        let free = parameters.get(2).copied();
         let Some(jac) = jacobians else {
-            let Ok(pixel) = camera.project(&p_cam) else {
+            let Some(pixel) = self.intrinsics.project(&p_cam, free) else {
                 return false;
             };
             residuals[0] = pixel.x - self.pixel.x;
             residuals[1] = pixel.y - self.pixel.y;
             return true;
         };
-        let Ok((pixel, d_pixel)) = camera.project_with_point_jacobian(&p_cam) else {
+        let Some((pixel, d_pixel, d_params)) = self.intrinsics.project_with_jacobians(&p_cam, free)
+        else {
             return false;
         };
         residuals[0] = pixel.x - self.pixel.x;
@@ -228,6 +307,7 @@ impl CostFunction for RigReprojection {
         if jac.wants(1) {
             jac.set(1, &rig_from_camera_jacobian(&d_pixel, &p_cam));
         }
+        self.intrinsics.set_jacobian(jac, 2, d_params.as_ref());
         true
     }
 }
@@ -309,6 +389,7 @@ impl RigRefinement {
             });
         }
         validate_loss(&options.loss)?;
+        validate_held_intrinsics(&self.cameras, &options.held_intrinsics)?;
         for (i, p) in self.rig_from_camera.iter().enumerate() {
             check_pose(i, p, "rig_from_camera")?;
         }
@@ -354,9 +435,17 @@ impl RigRefinement {
     /// usable observation.
     pub fn to_problem(&self, options: &RigRefinementOptions) -> Result<RigProblem> {
         self.validate(options)?;
-        let cameras: Arc<[Camera]> = self.cameras.clone().into();
+        let fixed: Arc<[Camera]> = self.cameras.clone().into();
         let frame_params: Vec<[f64; 7]> = self.world_from_rig.iter().map(se3_to_params).collect();
         let camera_params: Vec<[f64; 7]> = self.rig_from_camera.iter().map(se3_to_params).collect();
+        let free = free_intrinsics(&self.cameras, |c, camera| {
+            options
+                .intrinsics
+                .indices(camera)
+                .into_iter()
+                .filter(|&p| !options.held_intrinsics.contains(&(c, p)))
+                .collect()
+        });
         // Observations that cannot be evaluated at the start are left out.
         let mut probe = EvaluationProbe::default();
         let mut costs = Vec::with_capacity(self.observations.len());
@@ -364,14 +453,21 @@ impl RigRefinement {
         let mut used_by_camera = vec![0usize; self.cameras.len()];
         let mut used_by_frame = vec![0usize; self.world_from_rig.len()];
         for (i, o) in self.observations.iter().enumerate() {
+            let (intrinsics, n_free) = Intrinsics::of(&fixed, o.camera, free[o.camera].as_ref());
+            let n_args = if n_free > 0 { 3 } else { 2 };
             let cost = RigReprojection {
-                cameras: Arc::clone(&cameras),
-                camera: o.camera,
+                intrinsics,
+                sizes: [7, 7, n_free],
+                n_args,
                 world_point: o.world_point,
                 pixel: o.pixel,
             };
-            let params: [&[f64]; 2] = [&frame_params[o.frame], &camera_params[o.camera]];
-            if probe.evaluates(&cost, &params, &[6, 6]) {
+            let params: [&[f64]; 3] = [
+                &frame_params[o.frame],
+                &camera_params[o.camera],
+                free[o.camera].as_ref().map_or(&[][..], |f| &f.values),
+            ];
+            if probe.evaluates(&cost, &params[..n_args], &[6, 6, n_free][..n_args]) {
                 used_by_camera[o.camera] += 1;
                 used_by_frame[o.frame] += 1;
                 costs.push((o, cost));
@@ -395,40 +491,58 @@ impl RigRefinement {
             .iter()
             .map(|p| problem.add_manifold_block(p, Se3Manifold))
             .collect::<Result<Vec<_>>>()?;
+        let intrinsics = free
+            .iter()
+            .map(|f| {
+                f.as_ref()
+                    .map(|f| {
+                        Ok((
+                            problem.add_parameter_block(&f.values)?,
+                            f.cache.free.clone(),
+                        ))
+                    })
+                    .transpose()
+            })
+            .collect::<Result<Vec<_>>>()?;
         for &f in &world_from_rig {
             problem.set_eliminated(f, true)?;
         }
         problem.set_constant(rig_from_camera[options.reference_camera], true)?;
         for (o, cost) in costs {
-            problem.add_residual_block(
-                cost,
-                options.loss,
-                &[world_from_rig[o.frame], rig_from_camera[o.camera]],
-            )?;
+            let (frame, camera) = (world_from_rig[o.frame], rig_from_camera[o.camera]);
+            let blocks = match &intrinsics[o.camera] {
+                Some((id, _)) => [frame, camera, *id],
+                None => [frame, camera, camera],
+            };
+            let n = if intrinsics[o.camera].is_some() { 3 } else { 2 };
+            problem.add_residual_block(cost, options.loss, &blocks[..n])?;
         }
         Ok(RigProblem {
             problem,
             world_from_rig,
             rig_from_camera,
+            intrinsics,
             excluded_observations,
         })
     }
 
     /// Root-mean-square reprojection error (pixels) of the given poses over all observations
-    /// (observations that cannot be projected are skipped).
+    /// (observations that cannot be projected are skipped), with the problem's cameras.
     #[must_use]
     pub fn rms_error(
         &self,
         rig_from_camera: &[Isometry3<f64>],
         world_from_rig: &[Isometry3<f64>],
     ) -> f64 {
-        self.rms_over(&[], rig_from_camera, world_from_rig)
+        self.rms_over(&[], &self.cameras, rig_from_camera, world_from_rig)
     }
 
-    /// [`RigRefinement::rms_error`] without the observations in `excluded` (ascending).
+    /// [`RigRefinement::rms_error`] with the given cameras, without the observations in
+    /// `excluded` (ascending).
     fn rms_over(
         &self,
         excluded: &[usize],
+        cameras: &[Camera],
         rig_from_camera: &[Isometry3<f64>],
         world_from_rig: &[Isometry3<f64>],
     ) -> f64 {
@@ -441,7 +555,7 @@ impl RigRefinement {
             let (Some(c), Some(w), Some(cam)) = (
                 rig_from_camera.get(o.camera),
                 world_from_rig.get(o.frame),
-                self.cameras.get(o.camera),
+                cameras.get(o.camera),
             ) else {
                 continue;
             };
@@ -456,16 +570,21 @@ impl RigRefinement {
         if n == 0 { 0.0 } else { (sum / n as f64).sqrt() }
     }
 
-    /// Refines the extrinsics and rig poses, leaving out the observations that cannot be
-    /// evaluated at the initial estimate (see the module documentation).
+    /// Refines the extrinsics, rig poses and the selected intrinsics, leaving out the
+    /// observations that cannot be evaluated at the initial estimate (see the module
+    /// documentation).
     ///
     /// # Errors
-    /// As [`RigRefinement::to_problem`] and [`Problem::solve`].
+    /// As [`RigRefinement::to_problem`] and [`Problem::solve`];
+    /// [`BundleAdjustError::RefinedIntrinsicsRejected`] when a model refuses its refined
+    /// intrinsics; with free intrinsics and [`RigRefinementOptions::covariance`],
+    /// [`BundleAdjustError::SingularInformation`] when the rig poses are not determined.
     pub fn refine(&self, options: &RigRefinementOptions) -> Result<RigRefinementResult> {
         let RigProblem {
             mut problem,
             world_from_rig: frames,
             rig_from_camera: extrinsics,
+            intrinsics,
             excluded_observations,
         } = self.to_problem(options)?;
         let summary = problem.solve(&options.solver)?;
@@ -476,13 +595,56 @@ impl RigRefinement {
         };
         let rig_from_camera = read(&extrinsics)?;
         let world_from_rig = read(&frames)?;
-        let mut extrinsic_covariance = vec![None; extrinsics.len()];
-        if options.covariance {
-            let free: Vec<ParameterBlockId> = extrinsics
-                .iter()
-                .enumerate()
-                .filter(|&(i, _)| i != options.reference_camera)
-                .map(|(_, &id)| id)
+        let cameras = refined_cameras(&self.cameras, &intrinsics, &problem)?;
+        let nc = extrinsics.len();
+        let mut extrinsic_covariance = vec![None; nc];
+        let mut intrinsic_covariance = vec![None; nc];
+        let mut observability = Vec::new();
+        let free_extrinsic = |c: usize| c != options.reference_camera;
+        if options.covariance && intrinsics.iter().any(Option::is_some) {
+            let mut blocks = Vec::new();
+            for c in 0..nc {
+                if free_extrinsic(c) {
+                    blocks.push(CameraBlock {
+                        camera: c,
+                        id: extrinsics[c],
+                        intrinsics: None,
+                        names: &EXTRINSIC_NAMES,
+                    });
+                }
+                if let Some((id, free)) = &intrinsics[c] {
+                    blocks.push(CameraBlock {
+                        camera: c,
+                        id: *id,
+                        intrinsics: Some(free),
+                        names: &[],
+                    });
+                }
+            }
+            let (entries, covariances) =
+                analyse_camera_blocks(&problem, &blocks, &cameras, &options.solver)?;
+            observability = entries;
+            for (block, cov) in blocks.iter().zip(covariances) {
+                let (c, Some(cov)) = (block.camera, cov) else {
+                    continue;
+                };
+                match block.intrinsics {
+                    Some(free) => {
+                        intrinsic_covariance[c] = Some(full_intrinsic_covariance(
+                            &cov,
+                            free,
+                            cameras[c].num_params(),
+                        ));
+                    }
+                    None => {
+                        extrinsic_covariance[c] = Some(Matrix6::from_iterator(cov.iter().copied()));
+                    }
+                }
+            }
+        } else if options.covariance {
+            let free: Vec<ParameterBlockId> = (0..nc)
+                .filter(|&c| free_extrinsic(c))
+                .map(|c| extrinsics[c])
                 .collect();
             if !free.is_empty()
                 && let Ok(cov) = problem.covariance(&free, &options.solver)
@@ -497,13 +659,22 @@ impl RigRefinement {
         Ok(RigRefinementResult {
             initial_rms: self.rms_over(
                 &excluded_observations,
+                &self.cameras,
                 &self.rig_from_camera,
                 &self.world_from_rig,
             ),
-            final_rms: self.rms_over(&excluded_observations, &rig_from_camera, &world_from_rig),
+            final_rms: self.rms_over(
+                &excluded_observations,
+                &cameras,
+                &rig_from_camera,
+                &world_from_rig,
+            ),
             rig_from_camera,
             world_from_rig,
+            cameras,
             extrinsic_covariance,
+            intrinsic_covariance,
+            observability,
             excluded_observations,
             summary,
         })

@@ -14,13 +14,15 @@
 
 use std::sync::{Arc, RwLock};
 
-use ibc_camera_models::{Camera, CameraModel};
-use nalgebra::{Isometry3, Matrix3, Matrix3x2, SMatrix, Vector2, Vector3};
+use ibc_camera_models::{Camera, CameraModel, ParamJacobian};
+use nalgebra::{DMatrix, Isometry3, Matrix2x3, Matrix3, Matrix3x2, SMatrix, Vector2, Vector3};
 
 use crate::cost::{CostFunction, Jacobians};
+use crate::error::{BundleAdjustError, Result};
 use crate::manifold::{
     Manifold, se3_from_params, se3_from_unit_params, se3_to_params, so3_exp, sphere_tangent_basis,
 };
+use crate::problem::{ParameterBlockId, Problem};
 use crate::rig::{rig_from_camera_jacobian, world_from_rig_jacobian};
 
 /// A pose `[qw, qx, qy, qz, tx, ty, tz]` whose translation stays on the sphere of radius
@@ -141,12 +143,183 @@ impl IntrinsicsCache {
     }
 }
 
+/// The free intrinsics of one camera: their indices (CamOdoCal order), the camera that
+/// follows them and their start values (the block's).
+pub(crate) struct FreeIntrinsics {
+    pub cache: Arc<IntrinsicsCache>,
+    pub values: Vec<f64>,
+}
+
+/// Per camera, its free intrinsics (`None` when every parameter is held): `free(c, camera)`
+/// lists camera `c`'s free parameter indices.
+pub(crate) fn free_intrinsics(
+    cameras: &[Camera],
+    free: impl Fn(usize, &Camera) -> Vec<usize>,
+) -> Vec<Option<FreeIntrinsics>> {
+    cameras
+        .iter()
+        .enumerate()
+        .map(|(c, camera)| {
+            let free = free(c, camera);
+            (!free.is_empty()).then(|| FreeIntrinsics {
+                values: free.iter().map(|&p| camera.params()[p]).collect(),
+                cache: Arc::new(IntrinsicsCache::new(camera.clone(), free)),
+            })
+        })
+        .collect()
+}
+
+/// A typed error when a `(camera, parameter)` of `held` names no camera or no parameter.
+pub(crate) fn validate_held_intrinsics(cameras: &[Camera], held: &[(usize, usize)]) -> Result<()> {
+    let invalid = |reason| BundleAdjustError::InvalidOption {
+        name: "held_intrinsics",
+        reason,
+    };
+    for &(c, p) in held {
+        let Some(camera) = cameras.get(c) else {
+            return Err(invalid(format!(
+                "camera {c} does not exist ({} cameras)",
+                cameras.len()
+            )));
+        };
+        if p >= camera.num_params() {
+            return Err(invalid(format!(
+                "camera {c} has {} parameters, not a parameter {p}",
+                camera.num_params()
+            )));
+        }
+    }
+    Ok(())
+}
+
+/// `cameras` with the values of their free-intrinsics blocks (`blocks[c]`: the block and its
+/// parameter indices) read from `problem`.
+///
+/// # Errors
+/// [`BundleAdjustError::RefinedIntrinsicsRejected`] when a model refuses its refined values.
+pub(crate) fn refined_cameras(
+    cameras: &[Camera],
+    blocks: &[Option<(ParameterBlockId, Vec<usize>)>],
+    problem: &Problem,
+) -> Result<Vec<Camera>> {
+    let mut refined = cameras.to_vec();
+    for (camera, (model, block)) in refined.iter_mut().zip(blocks).enumerate() {
+        if let Some((id, free)) = block {
+            let mut params = model.params().to_vec();
+            for (&p, &v) in free.iter().zip(problem.parameter_block(*id)?) {
+                params[p] = v;
+            }
+            model.set_params(&params).map_err(|source| {
+                BundleAdjustError::RefinedIntrinsicsRejected { camera, source }
+            })?;
+        }
+    }
+    Ok(refined)
+}
+
+/// The full covariance (CamOdoCal order, zero rows and columns for held parameters) of a
+/// camera with `num_params` parameters from the covariance `block` of its free ones.
+pub(crate) fn full_intrinsic_covariance(
+    block: &DMatrix<f64>,
+    free: &[usize],
+    num_params: usize,
+) -> DMatrix<f64> {
+    let mut full = DMatrix::zeros(num_params, num_params);
+    for (a, &pa) in free.iter().enumerate() {
+        for (b, &pb) in free.iter().enumerate() {
+            full[(pa, pb)] = block[(a, b)];
+        }
+    }
+    full
+}
+
 /// Where a reprojection residual takes its intrinsics from.
 pub(crate) enum Intrinsics {
     /// Held: camera `index` of the shared list.
     Fixed(Arc<[Camera]>, usize),
     /// Free (some of them): the last argument is the block of the free parameters.
     Free(Arc<IntrinsicsCache>),
+}
+
+impl Intrinsics {
+    /// Camera `camera`'s: free when it has free intrinsics, else held (`fixed` the shared
+    /// list); with the number of free parameters.
+    pub(crate) fn of(
+        fixed: &Arc<[Camera]>,
+        camera: usize,
+        free: Option<&FreeIntrinsics>,
+    ) -> (Self, usize) {
+        match free {
+            Some(f) => (Intrinsics::Free(Arc::clone(&f.cache)), f.values.len()),
+            None => (Intrinsics::Fixed(Arc::clone(fixed), camera), 0),
+        }
+    }
+}
+
+/// A projection with d pixel / d point and, for free intrinsics, d pixel / d params.
+pub(crate) type Projected = (Vector2<f64>, Matrix2x3<f64>, Option<ParamJacobian<2>>);
+
+impl Intrinsics {
+    /// The pixel of `p_cam`, `None` outside the model's domain; `free` is the block of the
+    /// free parameters (ignored when held).
+    #[inline]
+    pub(crate) fn project(
+        &self,
+        p_cam: &Vector3<f64>,
+        free: Option<&[f64]>,
+    ) -> Option<Vector2<f64>> {
+        match (self, free) {
+            (Intrinsics::Fixed(cameras, c), _) => cameras[*c].project(p_cam).ok(),
+            (Intrinsics::Free(cache), Some(values)) => {
+                cache.with(values, |cam| cam.project(p_cam).ok()).flatten()
+            }
+            (Intrinsics::Free(_), None) => None,
+        }
+    }
+
+    /// The pixel of `p_cam` with its Jacobians, the parameter Jacobian only when the
+    /// intrinsics are free.
+    #[inline]
+    pub(crate) fn project_with_jacobians(
+        &self,
+        p_cam: &Vector3<f64>,
+        free: Option<&[f64]>,
+    ) -> Option<Projected> {
+        match (self, free) {
+            (Intrinsics::Fixed(cameras, c), _) => {
+                let (pixel, d_pixel) = cameras[*c].project_with_point_jacobian(p_cam).ok()?;
+                Some((pixel, d_pixel, None))
+            }
+            (Intrinsics::Free(cache), Some(values)) => {
+                let pj = cache
+                    .with(values, |cam| cam.project_with_jacobians(p_cam))?
+                    .ok()?;
+                Some((pj.pixel, pj.d_pixel_d_point, Some(pj.d_pixel_d_params)))
+            }
+            (Intrinsics::Free(_), None) => None,
+        }
+    }
+
+    /// Writes the free parameters' columns of `d_params` into argument `slot`'s Jacobian
+    /// when it is wanted.
+    #[inline]
+    pub(crate) fn set_jacobian(
+        &self,
+        jac: &mut Jacobians<'_>,
+        slot: usize,
+        d_params: Option<&ParamJacobian<2>>,
+    ) {
+        if let (Intrinsics::Free(cache), Some(d_params)) = (self, d_params)
+            && let Some(j) = jac.row_major_mut(slot)
+        {
+            let n = cache.free.len();
+            for row in 0..2 {
+                for (col, &p) in cache.free.iter().enumerate() {
+                    j[row * n + col] = d_params[(row, p)];
+                }
+            }
+        }
+    }
 }
 
 /// The reprojection error of one observation; arguments `[world_from_rig (7), rig_from_camera
@@ -186,34 +359,18 @@ impl CostFunction for RigBaReprojection {
             world_from_rig.inverse_transform_vector(&(x - world_from_rig.translation.vector));
         let p_cam =
             rig_from_camera.inverse_transform_vector(&(p_rig - rig_from_camera.translation.vector));
+        let free = parameters.get(3).copied();
         let Some(jac) = jacobians else {
-            let pixel = match &self.intrinsics {
-                Intrinsics::Fixed(cameras, c) => cameras[*c].project(&p_cam).ok(),
-                Intrinsics::Free(cache) => cache
-                    .with(parameters[3], |cam| cam.project(&p_cam).ok())
-                    .flatten(),
+            let Some(pixel) = self.intrinsics.project(&p_cam, free) else {
+                return false;
             };
-            let Some(pixel) = pixel else { return false };
             residuals[0] = pixel.x - self.pixel.x;
             residuals[1] = pixel.y - self.pixel.y;
             return true;
         };
-        // The parameter Jacobian only when the intrinsics are free.
-        let (pixel, d_pixel, d_params) = match &self.intrinsics {
-            Intrinsics::Fixed(cameras, c) => {
-                let Ok((pixel, d_pixel)) = cameras[*c].project_with_point_jacobian(&p_cam) else {
-                    return false;
-                };
-                (pixel, d_pixel, None)
-            }
-            Intrinsics::Free(cache) => {
-                let Some(Ok(pj)) =
-                    cache.with(parameters[3], |cam| cam.project_with_jacobians(&p_cam))
-                else {
-                    return false;
-                };
-                (pj.pixel, pj.d_pixel_d_point, Some(pj.d_pixel_d_params))
-            }
+        let Some((pixel, d_pixel, d_params)) = self.intrinsics.project_with_jacobians(&p_cam, free)
+        else {
+            return false;
         };
         residuals[0] = pixel.x - self.pixel.x;
         residuals[1] = pixel.y - self.pixel.y;
@@ -239,16 +396,7 @@ impl CostFunction for RigBaReprojection {
                 .transpose();
             jac.set(2, &(d_rig * rig_from_world));
         }
-        if let (Intrinsics::Free(cache), Some(d_params)) = (&self.intrinsics, d_params)
-            && let Some(j) = jac.row_major_mut(3)
-        {
-            let n = cache.free.len();
-            for row in 0..2 {
-                for (col, &p) in cache.free.iter().enumerate() {
-                    j[row * n + col] = d_params[(row, p)];
-                }
-            }
-        }
+        self.intrinsics.set_jacobian(jac, 3, d_params.as_ref());
         true
     }
 }

@@ -80,7 +80,8 @@ use crate::program::{NONE, Program};
 use crate::reduced::{ReducedLayout, TargetKind};
 use crate::rig::{check_pose, check_rig_coverage};
 use crate::rig_ba_cost::{
-    Intrinsics, IntrinsicsCache, PointDistancePrior, RigBaReprojection, SpherePoseManifold,
+    Intrinsics, PointDistancePrior, RigBaReprojection, SpherePoseManifold, free_intrinsics,
+    full_intrinsic_covariance, refined_cameras, validate_held_intrinsics,
 };
 use crate::schur::SchurComplement;
 use crate::summary::Summary;
@@ -392,23 +393,7 @@ impl RigBundleAdjustment {
                 });
             }
         }
-        for &(c, p) in &options.held_intrinsics {
-            let Some(camera) = self.cameras.get(c) else {
-                return Err(invalid(
-                    "held_intrinsics",
-                    format!("camera {c} does not exist ({nc} cameras)"),
-                ));
-            };
-            if p >= camera.num_params() {
-                return Err(invalid(
-                    "held_intrinsics",
-                    format!(
-                        "camera {c} has {} parameters, not a parameter {p}",
-                        camera.num_params()
-                    ),
-                ));
-            }
-        }
+        validate_held_intrinsics(&self.cameras, &options.held_intrinsics)?;
         if let Some(&c) = options.held_extrinsics.iter().find(|&&c| c >= nc) {
             return Err(invalid(
                 "held_extrinsics",
@@ -589,34 +574,14 @@ impl RigBundleAdjustment {
         let frame_params: Vec<[f64; 7]> = frame_poses.iter().map(se3_to_params).collect();
         let camera_params: Vec<[f64; 7]> = camera_poses.iter().map(se3_to_params).collect();
         let fixed: Arc<[Camera]> = self.cameras.clone().into();
-        let free_intrinsics: Vec<Vec<usize>> = self
-            .cameras
-            .iter()
-            .enumerate()
-            .map(|(c, cam)| {
-                if !options.optimize_intrinsics {
-                    return Vec::new();
-                }
-                (0..cam.num_params())
-                    .filter(|&p| !options.held_intrinsics.contains(&(c, p)))
-                    .collect()
-            })
-            .collect();
-        let caches: Vec<Option<Arc<IntrinsicsCache>>> = self
-            .cameras
-            .iter()
-            .zip(&free_intrinsics)
-            .map(|(cam, free)| {
-                (!free.is_empty())
-                    .then(|| Arc::new(IntrinsicsCache::new(cam.clone(), free.clone())))
-            })
-            .collect();
-        let free_values: Vec<Vec<f64>> = self
-            .cameras
-            .iter()
-            .zip(&free_intrinsics)
-            .map(|(cam, free)| free.iter().map(|&p| cam.params()[p]).collect())
-            .collect();
+        let free = free_intrinsics(&self.cameras, |c, cam| {
+            if !options.optimize_intrinsics {
+                return Vec::new();
+            }
+            (0..cam.num_params())
+                .filter(|&p| !options.held_intrinsics.contains(&(c, p)))
+                .collect()
+        });
 
         let mut probe = EvaluationProbe::default();
         let mut costs = Vec::with_capacity(self.observations.len());
@@ -649,18 +614,9 @@ impl RigBundleAdjustment {
             let cs = camera_sphere
                 .filter(|(c, _)| *c == o.camera)
                 .map(|(_, m)| m);
-            let (intrinsics, sizes, n_args) = match &caches[o.camera] {
-                Some(cache) => (
-                    Intrinsics::Free(Arc::clone(cache)),
-                    [7, 7, 3, cache.free.len()],
-                    4,
-                ),
-                None => (
-                    Intrinsics::Fixed(Arc::clone(&fixed), o.camera),
-                    [7, 7, 3, 0],
-                    3,
-                ),
-            };
+            let (intrinsics, n_free) = Intrinsics::of(&fixed, o.camera, free[o.camera].as_ref());
+            let n_args = if n_free > 0 { 4 } else { 3 };
+            let sizes = [7, 7, 3, n_free];
             let cost = RigBaReprojection {
                 intrinsics,
                 sizes,
@@ -673,13 +629,13 @@ impl RigBundleAdjustment {
                 if fs.is_some() { 5 } else { 6 },
                 if cs.is_some() { 5 } else { 6 },
                 3,
-                free_values[o.camera].len(),
+                n_free,
             ];
             let params: [&[f64]; 4] = [
                 &frame_params[o.frame],
                 &camera_params[o.camera],
                 self.points[o.point].as_slice(),
-                &free_values[o.camera],
+                free[o.camera].as_ref().map_or(&[][..], |f| &f.values),
             ];
             if probe.evaluates(&cost, &params[..n_args], &tangents[..n_args]) {
                 by_camera[o.camera] += 1;
@@ -731,15 +687,17 @@ impl RigBundleAdjustment {
                 _ => problem.add_manifold_block(p, Se3Manifold),
             })
             .collect::<Result<Vec<_>>>()?;
-        let intrinsics = free_values
+        let intrinsics = free
             .iter()
-            .zip(&free_intrinsics)
-            .map(|(values, free)| {
-                if free.is_empty() {
-                    Ok(None)
-                } else {
-                    Ok(Some((problem.add_parameter_block(values)?, free.clone())))
-                }
+            .map(|f| {
+                f.as_ref()
+                    .map(|f| {
+                        Ok((
+                            problem.add_parameter_block(&f.values)?,
+                            f.cache.free.clone(),
+                        ))
+                    })
+                    .transpose()
             })
             .collect::<Result<Vec<_>>>()?;
         let soft_point = match options.scale {
@@ -872,18 +830,7 @@ impl RigBundleAdjustment {
                     .map(|v| Vector3::new(v[0], v[1], v[2]))
             })
             .collect::<Result<Vec<_>>>()?;
-        let mut cameras = self.cameras.clone();
-        for (camera, (model, block)) in cameras.iter_mut().zip(&intrinsics).enumerate() {
-            if let Some((id, free)) = block {
-                let mut params = model.params().to_vec();
-                for (&p, &v) in free.iter().zip(problem.parameter_block(*id)?) {
-                    params[p] = v;
-                }
-                model.set_params(&params).map_err(|source| {
-                    BundleAdjustError::RefinedIntrinsicsRejected { camera, source }
-                })?;
-            }
-        }
+        let cameras = refined_cameras(&self.cameras, &intrinsics, &problem)?;
         let mut result = RigBundleAdjustmentResult {
             initial_rms: self.rms_error(
                 &self.cameras,
@@ -914,86 +861,133 @@ impl RigBundleAdjustment {
             let mut blocks = Vec::new();
             for c in 0..self.cameras.len() {
                 if !held_camera[c] {
-                    blocks.push((c, false, extrinsics[c]));
+                    let names = if camera_sphere.is_some_and(|(sc, _)| sc == c) {
+                        &SPHERE_EXTRINSIC_NAMES[..]
+                    } else {
+                        &EXTRINSIC_NAMES[..]
+                    };
+                    blocks.push(CameraBlock {
+                        camera: c,
+                        id: extrinsics[c],
+                        intrinsics: None,
+                        names,
+                    });
                 }
-                if let Some((id, _)) = &intrinsics[c] {
-                    blocks.push((c, true, *id));
+                if let Some((id, free)) = &intrinsics[c] {
+                    blocks.push(CameraBlock {
+                        camera: c,
+                        id: *id,
+                        intrinsics: Some(free),
+                        names: &[],
+                    });
                 }
             }
-            if !blocks.is_empty() {
-                let ids: Vec<ParameterBlockId> = blocks.iter().map(|b| b.2).collect();
-                let information = marginal_information(&problem, &ids, &options.solver)?;
-                let analysis = analyse(&information);
-                let mut offset = 0;
-                for &(c, intrinsic, id) in &blocks {
-                    let n = problem.tangent_size(id)?;
-                    let sphere = camera_sphere.filter(|(sc, _)| *sc == c && !intrinsic);
-                    let names: Vec<&'static str> = if intrinsic {
-                        intrinsics[c]
-                            .as_ref()
-                            .map(|(_, free)| {
-                                free.iter()
-                                    .map(|&p| result.cameras[c].param_names()[p])
-                                    .collect()
-                            })
-                            .unwrap_or_default()
-                    } else if sphere.is_some() {
-                        vec!["baseline_a", "baseline_b", "phi_x", "phi_y", "phi_z"]
-                    } else {
-                        vec!["rho_x", "rho_y", "rho_z", "phi_x", "phi_y", "phi_z"]
-                    };
-                    for (k, name) in names.iter().enumerate() {
-                        let index = if intrinsic {
-                            intrinsics[c].as_ref().map_or(k, |(_, free)| free[k])
-                        } else {
-                            k
-                        };
-                        result.observability.push(ParameterObservability {
-                            camera: c,
-                            name,
-                            intrinsic,
-                            index,
-                            std_dev: analysis.std_dev[offset + k],
-                            observability: analysis.observability[offset + k],
-                        });
-                    }
-                    if let Some(cov) = &analysis.covariance {
-                        let block = cov.view((offset, offset), (n, n)).into_owned();
-                        if intrinsic {
-                            let free = intrinsics[c]
-                                .as_ref()
-                                .map(|(_, f)| f.clone())
-                                .unwrap_or_default();
-                            let np = result.cameras[c].num_params();
-                            let mut full = DMatrix::zeros(np, np);
-                            for (a, &pa) in free.iter().enumerate() {
-                                for (b, &pb) in free.iter().enumerate() {
-                                    full[(pa, pb)] = block[(a, b)];
-                                }
-                            }
-                            result.intrinsic_covariance[c] = Some(full);
-                        } else if let Some((_, m)) = sphere {
-                            // [ρ, φ] = L [a, b, φ] with ρ = Rᵀ B [a, b].
-                            let pose = &result.rig_from_camera[c];
-                            let r = pose.rotation.to_rotation_matrix().into_inner();
-                            let lift3 = r.transpose() * m.basis(&pose.translation.vector);
-                            let mut lift = SMatrix::<f64, 6, 5>::zeros();
-                            lift.fixed_view_mut::<3, 2>(0, 0).copy_from(&lift3);
-                            lift.fixed_view_mut::<3, 3>(3, 2)
-                                .copy_from(&nalgebra::Matrix3::identity());
-                            let c5 = SMatrix::<f64, 5, 5>::from_iterator(block.iter().copied());
-                            result.extrinsic_covariance[c] = Some(lift * c5 * lift.transpose());
-                        } else {
-                            result.extrinsic_covariance[c] =
-                                Some(Matrix6::from_iterator(block.iter().copied()));
-                        }
-                    }
-                    offset += n;
+            let (observability, covariances) =
+                analyse_camera_blocks(&problem, &blocks, &result.cameras, &options.solver)?;
+            result.observability = observability;
+            for (block, cov) in blocks.iter().zip(covariances) {
+                let (c, Some(cov)) = (block.camera, cov) else {
+                    continue;
+                };
+                if let Some(free) = block.intrinsics {
+                    result.intrinsic_covariance[c] = Some(full_intrinsic_covariance(
+                        &cov,
+                        free,
+                        result.cameras[c].num_params(),
+                    ));
+                } else if let Some((_, m)) = camera_sphere.filter(|(sc, _)| *sc == c) {
+                    // [ρ, φ] = L [a, b, φ] with ρ = Rᵀ B [a, b].
+                    let pose = &result.rig_from_camera[c];
+                    let r = pose.rotation.to_rotation_matrix().into_inner();
+                    let lift3 = r.transpose() * m.basis(&pose.translation.vector);
+                    let mut lift = SMatrix::<f64, 6, 5>::zeros();
+                    lift.fixed_view_mut::<3, 2>(0, 0).copy_from(&lift3);
+                    lift.fixed_view_mut::<3, 3>(3, 2)
+                        .copy_from(&nalgebra::Matrix3::identity());
+                    let c5 = SMatrix::<f64, 5, 5>::from_iterator(cov.iter().copied());
+                    result.extrinsic_covariance[c] = Some(lift * c5 * lift.transpose());
+                } else {
+                    result.extrinsic_covariance[c] =
+                        Some(Matrix6::from_iterator(cov.iter().copied()));
                 }
             }
         }
         Ok(result)
     }
+}
+
+/// The names of an extrinsic's tangent coordinates.
+pub(crate) const EXTRINSIC_NAMES: [&str; 6] =
+    ["rho_x", "rho_y", "rho_z", "phi_x", "phi_y", "phi_z"];
+
+/// The names of the baseline camera's tangent coordinates (its translation on the sphere).
+const SPHERE_EXTRINSIC_NAMES: [&str; 5] = ["baseline_a", "baseline_b", "phi_x", "phi_y", "phi_z"];
+
+/// What [`analyse_camera_blocks`] finds: every coordinate's figures, and each block's
+/// covariance (`None` when the information has a null direction).
+pub(crate) type CameraBlockAnalysis = (Vec<ParameterObservability>, Vec<Option<DMatrix<f64>>>);
+
+/// One camera parameter block of [`analyse_camera_blocks`].
+pub(crate) struct CameraBlock<'a> {
+    pub camera: usize,
+    pub id: ParameterBlockId,
+    /// The free parameters' indices (CamOdoCal order) of an intrinsics block; `None` for an
+    /// extrinsic.
+    pub intrinsics: Option<&'a [usize]>,
+    /// The tangent coordinates' names of an extrinsic.
+    pub names: &'static [&'static str],
+}
+
+/// The uncertainty and observability of every coordinate of `blocks` (free, not
+/// eliminated; the others marginalized out, see the module documentation), and each block's
+/// covariance (unit pixel noise), `None` when the information has a null direction.
+pub(crate) fn analyse_camera_blocks(
+    problem: &Problem,
+    blocks: &[CameraBlock<'_>],
+    cameras: &[Camera],
+    solver: &SolverOptions,
+) -> Result<CameraBlockAnalysis> {
+    if blocks.is_empty() {
+        return Ok((Vec::new(), Vec::new()));
+    }
+    let ids: Vec<ParameterBlockId> = blocks.iter().map(|b| b.id).collect();
+    let information = marginal_information(problem, &ids, solver)?;
+    let analysis = analyse(&information);
+    let mut entries = Vec::new();
+    let mut covariances = Vec::with_capacity(blocks.len());
+    let mut offset = 0;
+    for block in blocks {
+        let n = problem.tangent_size(block.id)?;
+        for k in 0..n {
+            let (name, index) = match block.intrinsics {
+                Some(free) => {
+                    let p = free.get(k).copied().unwrap_or(k);
+                    let name = cameras
+                        .get(block.camera)
+                        .and_then(|c| c.param_names().get(p).copied())
+                        .unwrap_or("?");
+                    (name, p)
+                }
+                None => (block.names.get(k).copied().unwrap_or("?"), k),
+            };
+            entries.push(ParameterObservability {
+                camera: block.camera,
+                name,
+                intrinsic: block.intrinsics.is_some(),
+                index,
+                std_dev: analysis.std_dev[offset + k],
+                observability: analysis.observability[offset + k],
+            });
+        }
+        covariances.push(
+            analysis
+                .covariance
+                .as_ref()
+                .map(|cov| cov.view((offset, offset), (n, n)).into_owned()),
+        );
+        offset += n;
+    }
+    Ok((entries, covariances))
 }
 
 /// Covariance and per-parameter figures from a marginal information matrix.

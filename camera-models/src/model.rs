@@ -82,6 +82,21 @@ pub trait CameraModel {
     /// The parameter vector, CamOdoCal order, length [`num_params`](Self::num_params).
     fn params(&self) -> &[f64];
 
+    /// Indices (CamOdoCal order) of the two focal-length parameters, horizontal then
+    /// vertical: every model's parameter vector ends with them and the principal point
+    /// (Kannala-Brandt `mu, mv`, pinhole `fx, fy`, unified `gamma1, gamma2`).
+    fn focal_length_indices(&self) -> [usize; 2] {
+        let n = self.num_params();
+        [n - 4, n - 3]
+    }
+
+    /// Indices (CamOdoCal order) of the principal point's two coordinates (`u0, v0` or
+    /// `cx, cy`), the last two parameters of every model.
+    fn principal_point_indices(&self) -> [usize; 2] {
+        let n = self.num_params();
+        [n - 2, n - 1]
+    }
+
     /// Replace the parameter vector (CamOdoCal order) after validating it, and recompute the
     /// derived limits. On error the camera is unchanged.
     ///

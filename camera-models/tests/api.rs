@@ -40,3 +40,31 @@ fn files_are_written_atomically_and_read_bounded() {
     // Nothing but the file itself is left in the folder.
     assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
 }
+
+#[test]
+fn focal_length_and_principal_point_indices_name_those_parameters_in_every_model() {
+    use ibc_camera_models::{PinholeRadtan, Unified};
+    let cameras: [Camera; 3] = [
+        fisheye().unwrap(),
+        PinholeRadtan::new(640, 480, [0.0, 0.0, 0.0, 0.0, 400.0, 400.0, 320.0, 240.0])
+            .unwrap()
+            .into(),
+        Unified::new(
+            640,
+            480,
+            [0.8, 0.0, 0.0, 0.0, 0.0, 700.0, 700.0, 320.0, 240.0],
+        )
+        .unwrap()
+        .into(),
+    ];
+    let expected = [
+        (["mu", "mv"], ["u0", "v0"]),
+        (["fx", "fy"], ["cx", "cy"]),
+        (["gamma1", "gamma2"], ["u0", "v0"]),
+    ];
+    for (camera, (focal, centre)) in cameras.iter().zip(expected) {
+        let names = camera.param_names();
+        assert_eq!(camera.focal_length_indices().map(|i| names[i]), focal);
+        assert_eq!(camera.principal_point_indices().map(|i| names[i]), centre);
+    }
+}

@@ -213,3 +213,90 @@ fn the_json_report_has_the_keys_the_issue_lists() {
         assert!(r["timing_s"][key].is_number(), "timing_s.{key}");
     }
 }
+
+#[test]
+fn refine_intrinsics_corrects_a_stale_camera_file_and_writes_the_refined_ones() {
+    // Every lens changed since the map and the camera file were made (a scenario file's
+    // `changes`): the camera file's focal lengths are 1 % long, its principal points 3 px off.
+    let dir = tempfile::tempdir().unwrap();
+    let mut yaml = String::from("version: 1\nbase: garage\nscale: 0.5\nchanges:\n");
+    for name in ["front", "left", "rear", "right"] {
+        yaml.push_str(&format!(
+            "  - camera: {name}\n    focal_change: {}\n    principal_point_change_px: [-3, -3]\n",
+            1.0 / 1.01 - 1.0
+        ));
+    }
+    let scenario = dir.path().join("stale.yaml");
+    std::fs::write(&scenario, yaml).unwrap();
+    let world = dir.path().join("world");
+    let path = |name: &str| world.join(name).to_str().unwrap().to_owned();
+    let o = ibc(&[
+        "simulate",
+        "--quiet",
+        "--scenario",
+        scenario.to_str().unwrap(),
+        "--out",
+        world.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let calibrate = |out: &str, set: &str| {
+        ibc(&[
+            "calibrate",
+            "--quiet",
+            "--json",
+            "--map",
+            &path("map.ibcmap"),
+            "--log",
+            &path("log.ibclog"),
+            "--cameras",
+            &path("camchain.yaml"),
+            "--truth",
+            &path("truth.json"),
+            "--out",
+            &path(out),
+            "--refine-intrinsics",
+            set,
+        ])
+    };
+    // Held: the gates flag the calibration (exit 3).
+    let o = calibrate("held", "none");
+    assert_eq!(o.status.code(), Some(3), "{}", stderr(&o));
+    // Refined: focal lengths within 0.05 px, principal points within 0.2 px, exit 0, and the
+    // refined intrinsics in the report and in the written camchain.
+    let o = calibrate("refined", "focal+center");
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let report: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let truth: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(path("truth.json")).unwrap()).unwrap();
+    let written =
+        ibc_camera_models::Rig::read_kalibr(world.join("refined").join(output_names::CAMCHAIN))
+            .unwrap();
+    for (c, camera) in report["cameras"].as_array().unwrap().iter().enumerate() {
+        let refined = camera["intrinsics_refinement"]["refined"]
+            .as_array()
+            .unwrap();
+        assert_eq!(refined.len(), 4);
+        for p in refined {
+            let name = p["name"].as_str().unwrap();
+            let bar = if name.starts_with('m') { 0.05 } else { 0.2 };
+            let error = p["error"].as_f64().unwrap();
+            assert!(error.abs() <= bar, "camera {c} {name}: {error} px");
+        }
+        let params = ibc_camera_models::CameraModel::params(&written.cameras[c].camera);
+        for (k, v) in params.iter().enumerate() {
+            let t = truth["intrinsics"][c][k].as_f64().unwrap();
+            assert!((v - t).abs() <= 0.2, "camera {c} parameter {k}: {v} vs {t}");
+        }
+    }
+    let kinds: Vec<&str> = report["warnings"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|w| w["kind"].as_str().unwrap())
+        .collect();
+    assert_eq!(kinds, vec!["intrinsics_changed"; 8], "{kinds:?}");
+    // A set that is not one is a usage error naming the choices.
+    let o = calibrate("bad", "focal+skew");
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("focal+center"), "{}", stderr(&o));
+}

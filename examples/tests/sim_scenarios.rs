@@ -236,3 +236,30 @@ fn defaults_fill_what_a_file_leaves_out() {
     assert_eq!(s.trajectory.motion, Motion::Handheld);
     assert_eq!(s.odometry, OdometryKind::SixDof);
 }
+
+#[test]
+fn lens_changes_reach_the_log_not_the_camera_file_and_round_trip() {
+    let text = "version: 1\nscale: 0.05\nchanges:\n  - camera: left\n    focal_change: -0.01\n    \
+                principal_point_change_px: [2, -1]\n";
+    let s = Scenario::from_yaml_str(text, Path::new(".")).unwrap();
+    let back = Scenario::from_yaml_str(&s.to_yaml_string(), Path::new(".")).unwrap();
+    assert_eq!(back, s);
+    let world = ibc_pipeline::sim::SimulatedWorld::simulate(&s).unwrap();
+    // The camera file (the map-building rig) keeps the old lens; the truth holds the new one.
+    let old = ibc_camera_models::CameraModel::params(&world.map_rig.cameras[1].camera).to_vec();
+    let new = &world.truth.intrinsics[1];
+    assert!((new[4] / old[4] - 0.99).abs() < 1e-12 && (new[5] / old[5] - 0.99).abs() < 1e-12);
+    assert!((new[6] - old[6] - 2.0).abs() < 1e-12 && (new[7] - old[7] + 1.0).abs() < 1e-12);
+    assert_eq!(
+        world.truth.intrinsics[0],
+        ibc_camera_models::CameraModel::params(&world.map_rig.cameras[0].camera)
+    );
+    rejects(
+        "changes:\n  - camera: left\n    focal_change: 0.7\n",
+        "focal_change = 0.7, not in (-0.5, 0.5)",
+    );
+    rejects(
+        "changes:\n  - camera: left\n    principal_point_change_px: [1]\n",
+        "principal_point_change_px` must be a list of 2 numbers",
+    );
+}

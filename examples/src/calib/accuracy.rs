@@ -15,6 +15,7 @@
 //! the rotation angle, the yaw (rotation about the odometry's z-axis), the in-plane (x-y)
 //! translation error, and the height error when the height is observable.
 
+use ibc_camera_models::{Camera, CameraModel};
 use nalgebra::{Isometry3, Vector3};
 
 use super::error::CalibrationError;
@@ -30,6 +31,44 @@ pub struct CameraAccuracy {
     pub translation_error_deg: f64,
     /// Norm of the translation error, metres.
     pub translation_error_m: f64,
+}
+
+/// The errors of a camera's intrinsics (estimate minus truth), pixels.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct IntrinsicsAccuracy {
+    /// Of the two focal lengths (horizontal, vertical).
+    pub focal_error_px: [f64; 2],
+    /// Of the principal point.
+    pub principal_point_error_px: [f64; 2],
+}
+
+impl IntrinsicsAccuracy {
+    /// The errors of `estimate` against the true parameters `truth` (CamOdoCal order, same
+    /// model), `None` when the parameter counts differ.
+    pub fn of(estimate: &Camera, truth: &[f64]) -> Option<Self> {
+        let params = estimate.params();
+        if params.len() != truth.len() {
+            return None;
+        }
+        let error = |i: usize| params[i] - truth[i];
+        Some(Self {
+            focal_error_px: estimate.focal_length_indices().map(error),
+            principal_point_error_px: estimate.principal_point_indices().map(error),
+        })
+    }
+
+    /// The largest focal-length error's size, pixels.
+    pub fn max_focal_error_px(&self) -> f64 {
+        self.focal_error_px[0]
+            .abs()
+            .max(self.focal_error_px[1].abs())
+    }
+
+    /// The largest principal-point coordinate error's size, pixels.
+    pub fn max_principal_point_error_px(&self) -> f64 {
+        let [u, v] = self.principal_point_error_px;
+        u.abs().max(v.abs())
+    }
 }
 
 /// The errors of a hand-eye result.

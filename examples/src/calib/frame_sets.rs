@@ -85,6 +85,7 @@ mod tests {
             camera_from_world: Isometry3::translation(-x, 0.0, 0.0),
             inliers: Vec::new(),
             matches: 0,
+            correspondences: Vec::new(),
         })
     }
 

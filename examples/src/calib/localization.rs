@@ -55,6 +55,9 @@ pub struct LocalizedImage {
     pub camera_from_world: Isometry3<f64>,
     /// The RANSAC inliers, by increasing feature index.
     pub inliers: Vec<Correspondence>,
+    /// Every correspondence RANSAC was given, inliers or not (for re-selecting the inliers
+    /// under refined intrinsics: see [`crate::calib::refinement`]).
+    pub correspondences: Vec<Correspondence>,
     /// Correspondences before RANSAC (one per map point).
     pub matches: usize,
 }
@@ -305,6 +308,7 @@ pub fn localize_image<D: Descriptor>(
             camera_from_world: pose.camera_from_world,
             inliers: pose.inliers.iter().map(|&i| used[i]).collect(),
             matches: used.len() - pose.unprojection_failures,
+            correspondences: used,
         }),
         Err(PnpError::TooFewInliers { found, .. }) => {
             Err(LocalizationFailure::TooFewInliers { found, required })

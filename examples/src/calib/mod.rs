@@ -34,7 +34,7 @@ mod progress;
 pub mod quality;
 pub mod refinement;
 
-pub use accuracy::{CameraAccuracy, HandEyeAccuracy};
+pub use accuracy::{CameraAccuracy, HandEyeAccuracy, IntrinsicsAccuracy};
 pub use camera_matching::{CameraMatching, match_cameras};
 pub use error::CalibrationError;
 pub use frame_sets::{FrameSet, select_frame_sets};
@@ -52,4 +52,7 @@ pub use options::{
 pub use pipeline::{Accuracy, Calibration, Timing, calibrate, calibrate_with, finite_mean};
 pub use progress::{NoProgress, Progress, Stage};
 pub use quality::{CalibrationWarning, CameraQuality, Quality, ResidualStats, Status};
-pub use refinement::{PoseStd, Refinement, RigObservation, refine};
+pub use refinement::{
+    CameraIntrinsics, HeldIntrinsic, IntrinsicParameter, PoseStd, Refinement, RigObservation,
+    refine,
+};

@@ -5,6 +5,7 @@
 //! paper gives no value, the value of its implementation (CamOdoCal) or this crate's choice,
 //! said so on the field.
 
+use ibc_bundle_adjust::IntrinsicsSelection;
 use ibc_hand_eye::Pairing;
 use ibc_pnp::{AbsolutePoseOptions, RansacOptions};
 use ibc_rig_averaging::RigInitOptions;
@@ -188,6 +189,18 @@ pub struct RefinementOptions {
     /// gives up to ten times more, which would cost time for little gain.
     /// `usize::MAX` keeps them all.
     pub max_observations_per_image: usize,
+    /// The intrinsics refined with the extrinsics against the map, the same set for every
+    /// camera. Default [`IntrinsicsSelection::None`] (the paper's refinement; see
+    /// `ibc calibrate --refine-intrinsics` for the measurements behind the default).
+    pub intrinsics: IntrinsicsSelection,
+    /// A selected intrinsic parameter whose observability (the share of its information left
+    /// once every other parameter is free, see [`ibc_bundle_adjust::rig_bundle_adjustment`])
+    /// is below this is held at the camera file's value and listed as held. Default 1e-4: its
+    /// standard deviation is then over a hundred times what it would be were every other
+    /// parameter known. Not higher: the garage fisheyes' horizontal principal points, nearly
+    /// a rotation of the camera, measure 0.002-0.007 and are still determined to 0.05-0.09 px
+    /// from 100 frames.
+    pub min_observability: f64,
     /// Keeps the struct open to new fields: build it with `..Default::default()`.
     #[doc(hidden)]
     pub non_exhaustive: crate::NonExhaustive,
@@ -199,6 +212,8 @@ impl Default for RefinementOptions {
             cauchy_scale_px: 1.0,
             max_iterations: 50,
             max_observations_per_image: 100,
+            intrinsics: IntrinsicsSelection::None,
+            min_observability: 1e-4,
             non_exhaustive: crate::NonExhaustive(()),
         }
     }
@@ -359,6 +374,13 @@ impl CalibrationOptions {
             self.refinement.max_observations_per_image,
             1,
         )?;
+        let m = self.refinement.min_observability;
+        if !(0.0..=1.0).contains(&m) {
+            return Err(invalid(
+                "refinement.min_observability",
+                format!("{m} is not in [0, 1]"),
+            ));
+        }
         if let Pairing::Window { size: 0 } = self.hand_eye.pairing {
             return Err(invalid(
                 "hand_eye.pairing",

@@ -43,14 +43,21 @@
 //!   residuals are outliers.
 //! - [`CalibrationWarning::NotConverged`]: the refinement stopped without converging.
 //! - [`CalibrationWarning::NoCovariance`]: the standard deviations could not be computed.
+//! - [`CalibrationWarning::IntrinsicsChanged`], a notice: with intrinsics refined, a focal
+//!   length or principal point moved from the camera file by more than
+//!   [`CHANGED_FOCAL_FRACTION`] or [`CHANGED_PRINCIPAL_POINT_PX`] and by more than
+//!   [`CHANGED_INTRINSIC_SIGMAS`] standard deviations ("`left` focal length 1.00% longer than
+//!   its camera file").
 //!
-//! A calibration with any warning has [`Status::Poor`]: it is still written and reported,
+//! A calibration with any warning but a notice has [`Status::Poor`]: it is still written and reported,
 //! and `ibc` exits with its own code (3) rather than 0.
 
+use ibc_camera_models::{Camera, CameraModel};
 use nalgebra::{Isometry3, Vector2};
 use serde::Serialize;
 
 use crate::calib::accuracy::relative_to_first;
+use crate::calib::refinement::{CameraIntrinsics, IntrinsicParameter};
 
 /// Cells per side of the grid over which the residual pattern is measured. Four: 16 cells
 /// keep a few hundred residuals each with 100 frames, and a focal-length or principal-point
@@ -90,6 +97,18 @@ pub const MOVED_DISTANCE_M: f64 = 0.005;
 
 /// ... or turned more than this many degrees.
 pub const MOVED_ROTATION_DEG: f64 = 0.5;
+
+/// A refined focal length that moved by more than this fraction of the camera file's value
+/// (and by more than [`CHANGED_INTRINSIC_SIGMAS`] standard deviations) is reported: 0.1 %,
+/// half of the 0.2 % that already costs the garage's extrinsics 35 mm when held.
+pub const CHANGED_FOCAL_FRACTION: f64 = 0.001;
+
+/// A refined principal point that moved by more than this (pixels, either coordinate, and by
+/// more than [`CHANGED_INTRINSIC_SIGMAS`] standard deviations) is reported.
+pub const CHANGED_PRINCIPAL_POINT_PX: f64 = 0.5;
+
+/// How many standard deviations a refined intrinsic must move to be reported as changed.
+pub const CHANGED_INTRINSIC_SIGMAS: f64 = 5.0;
 
 /// Statistics of one camera's reprojection residuals at one estimate.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
@@ -249,7 +268,8 @@ pub enum CalibrationWarning {
         "intrinsics of `{camera}` do not fit: its residuals follow a pattern over the image \
          ({pattern_px:.2} px, noise alone gives {noise_px:.2} px; spread {sigma_px:.2} px \
          against {others_px:.2} px for the others); stale intrinsics? Its standard deviations \
-         assume noise alone and are too small{}",
+         assume noise alone and are too small{}; `--refine-intrinsics` refines them against \
+         the map",
         moved.map_or(String::new(), |(d, r)| format!(
             ", and its change since the camera file ({:.2} cm, {r:.2} deg) may come from the \
              intrinsics, not from a moved camera",
@@ -318,6 +338,29 @@ pub enum CalibrationWarning {
          determined by the data"
     )]
     NoCovariance,
+    /// A refined intrinsic moved well beyond its standard deviation from the camera file: a
+    /// notice (the calibration carries the refined value), not a reason to distrust it.
+    #[error(
+        "`{camera}` {what} {change} than its camera file ({name}: {prior:.3} -> {value:.3}, \
+         std {std:.3}): the camera file is stale; the written calibration carries the \
+         refined intrinsics"
+    )]
+    IntrinsicsChanged {
+        /// The camera.
+        camera: String,
+        /// `focal length` or `principal point`.
+        what: &'static str,
+        /// How it changed (`1.00% longer`, `3.0 px further right` ...).
+        change: String,
+        /// The parameter that moved most.
+        name: &'static str,
+        /// The camera file's value.
+        prior: f64,
+        /// The refined value.
+        value: f64,
+        /// Its standard deviation.
+        std: f64,
+    },
 }
 
 impl CalibrationWarning {
@@ -329,6 +372,7 @@ impl CalibrationWarning {
             Self::Outliers { .. } => "outliers",
             Self::NotConverged { .. } => "not_converged",
             Self::NoCovariance => "no_covariance",
+            Self::IntrinsicsChanged { .. } => "intrinsics_changed",
         }
     }
 
@@ -337,9 +381,15 @@ impl CalibrationWarning {
         match self {
             Self::SystematicResiduals { camera, .. }
             | Self::ResidualSpread { camera, .. }
-            | Self::Outliers { camera, .. } => Some(camera),
+            | Self::Outliers { camera, .. }
+            | Self::IntrinsicsChanged { camera, .. } => Some(camera),
             Self::NotConverged { .. } | Self::NoCovariance => None,
         }
+    }
+
+    /// Whether it is a notice, which does not make the calibration [`Status::Poor`].
+    pub fn is_notice(&self) -> bool {
+        matches!(self, Self::IntrinsicsChanged { .. })
     }
 }
 
@@ -374,9 +424,9 @@ pub struct Quality {
 }
 
 impl Quality {
-    /// [`Status::Poor`] when there is a warning.
+    /// [`Status::Poor`] when there is a warning that is not a notice.
     pub fn status(&self) -> Status {
-        if self.warnings.is_empty() {
+        if self.warnings.iter().all(CalibrationWarning::is_notice) {
             Status::Ok
         } else {
             Status::Poor
@@ -410,6 +460,9 @@ pub struct RefinementFacts<'a> {
     pub prior_rig_from_camera: &'a [Isometry3<f64>],
     /// See `prior_rig_from_camera`.
     pub rig_from_camera: &'a [Isometry3<f64>],
+    /// The cameras (refined intrinsics) and what the refinement did with each camera's
+    /// intrinsics.
+    pub intrinsics: (&'a [Camera], &'a [CameraIntrinsics]),
 }
 
 /// The median of the robust spreads of every camera but `c` (NaN when there is none).
@@ -444,6 +497,80 @@ pub fn changes_since_prior(
 /// True when a change (metres, degrees) is large enough to be listed.
 pub fn is_listed_change((distance_m, rotation_deg): (f64, f64)) -> bool {
     distance_m > MOVED_DISTANCE_M || rotation_deg > MOVED_ROTATION_DEG
+}
+
+/// The notices of a camera whose refined focal length or principal point moved from the
+/// camera file by more than [`CHANGED_FOCAL_FRACTION`] or [`CHANGED_PRINCIPAL_POINT_PX`] and
+/// by more than [`CHANGED_INTRINSIC_SIGMAS`] standard deviations (the coordinate that moved
+/// most of each).
+fn intrinsics_changes(
+    name: &str,
+    camera: &Camera,
+    refined: &CameraIntrinsics,
+) -> Vec<CalibrationWarning> {
+    let significant = |p: &&IntrinsicParameter| {
+        let moved = (p.value - p.prior).abs();
+        // Without a standard deviation, the size of the move alone decides.
+        p.std.is_nan() || moved > CHANGED_INTRINSIC_SIGMAS * p.std
+    };
+    let pick = |indices: [usize; 2], threshold: &dyn Fn(&IntrinsicParameter) -> bool| {
+        refined
+            .refined
+            .iter()
+            .filter(|p| indices.contains(&p.index) && threshold(p))
+            .filter(significant)
+            .max_by(|a, b| {
+                (a.value - a.prior)
+                    .abs()
+                    .total_cmp(&(b.value - b.prior).abs())
+            })
+    };
+    let mut out = Vec::new();
+    let focal = pick(camera.focal_length_indices(), &|p| {
+        (p.value - p.prior).abs() > CHANGED_FOCAL_FRACTION * p.prior.abs()
+    });
+    if let Some(p) = focal {
+        let percent = (p.value / p.prior - 1.0) * 100.0;
+        let change = format!(
+            "{:.2}% {}",
+            percent.abs(),
+            if percent > 0.0 { "longer" } else { "shorter" }
+        );
+        out.push(changed(name, "focal length", change, p));
+    }
+    let centre = pick(camera.principal_point_indices(), &|p| {
+        (p.value - p.prior).abs() > CHANGED_PRINCIPAL_POINT_PX
+    });
+    if let Some(p) = centre {
+        let d = p.value - p.prior;
+        let horizontal = camera.principal_point_indices()[0] == p.index;
+        let direction = match (horizontal, d > 0.0) {
+            (true, true) => "right",
+            (true, false) => "left",
+            (false, true) => "down",
+            (false, false) => "up",
+        };
+        let change = format!("{:.2} px further {direction}", d.abs());
+        out.push(changed(name, "principal point", change, p));
+    }
+    out
+}
+
+fn changed(
+    camera: &str,
+    what: &'static str,
+    change: String,
+    p: &IntrinsicParameter,
+) -> CalibrationWarning {
+    CalibrationWarning::IntrinsicsChanged {
+        camera: camera.to_owned(),
+        what,
+        change,
+        name: p.name,
+        prior: p.prior,
+        value: p.value,
+        std: p.std,
+    }
 }
 
 /// The per-camera figures and the gates (see the module docs).
@@ -526,6 +653,10 @@ pub fn assess(facts: &RefinementFacts<'_>) -> Quality {
     }
     if !facts.covariance {
         warnings.push(CalibrationWarning::NoCovariance);
+    }
+    let (models, intrinsics) = facts.intrinsics;
+    for ((name, camera), refined) in facts.names.iter().zip(models).zip(intrinsics) {
+        warnings.extend(intrinsics_changes(name, camera, refined));
     }
     Quality { cameras, warnings }
 }

@@ -13,11 +13,21 @@
 //! The standard deviations of the extrinsics come from the covariance of the reduced system
 //! at the solution (rig poses marginalized), scaled by the a-posteriori variance factor
 //! `2 cost / (residuals - unknowns)`, and are expressed in the rig frame.
+//!
+//! **Intrinsics** ([`RefinementOptions::intrinsics`]; InfrasCal, ECCV 2020, calibrates them
+//! against a prior map; TrimBot2020 D3.1 §3.3.2 refines them with the extrinsics): the
+//! selected parameters of every camera (shared by all its images) are refined with the
+//! extrinsics and rig poses, the map still fixed. The data may not determine all of them (a
+//! distortion term on a lens whose correspondences stay near the centre): every selected
+//! parameter whose observability (see [`ibc_bundle_adjust::rig_bundle_adjustment`]) is
+//! below [`RefinementOptions::min_observability`], or whose standard deviation is not
+//! finite, is held at the camera file's value and listed in [`CameraIntrinsics::held`], and
+//! the refinement runs again without it.
 
 use ibc_bundle_adjust::rig::{
-    RigObservation as BaObservation, RigRefinement, RigRefinementOptions,
+    RigObservation as BaObservation, RigRefinement, RigRefinementOptions, RigRefinementResult,
 };
-use ibc_bundle_adjust::{RobustLoss, SolverOptions};
+use ibc_bundle_adjust::{IntrinsicsSelection, RobustLoss, SolverOptions};
 use ibc_camera_models::{Camera, CameraModel};
 use nalgebra::{Isometry3, Matrix3, Matrix6, Point3, Vector2, Vector3};
 
@@ -58,6 +68,45 @@ impl PoseStd {
     }
 }
 
+/// One refined intrinsic parameter.
+#[derive(Clone, Debug, PartialEq)]
+pub struct IntrinsicParameter {
+    /// Its name in the model (CamOdoCal order: `mu`, `fx`, `u0`, `k1`, ...).
+    pub name: &'static str,
+    /// Its index in CamOdoCal order.
+    pub index: usize,
+    /// The camera file's value.
+    pub prior: f64,
+    /// The refined value.
+    pub value: f64,
+    /// Its standard deviation (scaled by the a-posteriori variance factor), NaN when the
+    /// covariance could not be computed.
+    pub std: f64,
+    /// Its observability in [0, 1] (1 / variance-inflation factor).
+    pub observability: f64,
+}
+
+/// A selected intrinsic parameter the data did not determine, held at the camera file's
+/// value.
+#[derive(Clone, Debug, PartialEq)]
+pub struct HeldIntrinsic {
+    /// Its name in the model.
+    pub name: &'static str,
+    /// Its index in CamOdoCal order.
+    pub index: usize,
+    /// Its observability when it was free (below the threshold, or 0 for a null direction).
+    pub observability: f64,
+}
+
+/// What the refinement did with one camera's intrinsics.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct CameraIntrinsics {
+    /// The refined parameters (empty when none was selected or all were held).
+    pub refined: Vec<IntrinsicParameter>,
+    /// The selected parameters held because the data does not determine them.
+    pub held: Vec<HeldIntrinsic>,
+}
+
 /// The refined estimate.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Refinement {
@@ -65,6 +114,10 @@ pub struct Refinement {
     pub rig_from_camera: Vec<Isometry3<f64>>,
     /// `world_from_rig` per frame set.
     pub world_from_rig: Vec<Isometry3<f64>>,
+    /// The cameras with their refined intrinsics (the given ones where none was refined).
+    pub cameras: Vec<Camera>,
+    /// Per camera, its refined and held intrinsics (see the module docs).
+    pub intrinsics: Vec<CameraIntrinsics>,
     /// Standard deviations of each extrinsic (zero for camera 0), when the covariance could be
     /// computed.
     pub rig_from_camera_std: Option<Vec<PoseStd>>,
@@ -136,7 +189,8 @@ pub fn reprojection_error(
 pub const REFINEMENT_THREADS: usize = 2;
 
 /// Refines the extrinsics and rig poses (see the module docs) from `rig_from_camera` and
-/// `world_from_rig` (camera 0's extrinsic is taken as the identity).
+/// `world_from_rig` (camera 0's extrinsic is taken as the identity), and the selected
+/// intrinsics from `cameras`.
 ///
 /// # Errors
 /// [`CalibrationError::InvalidInput`] when the extrinsics and cameras differ in number,
@@ -149,6 +203,55 @@ pub fn refine(
     observations: &[RigObservation],
     options: &RefinementOptions,
 ) -> Result<Refinement, CalibrationError> {
+    let start = IntrinsicsStart {
+        prior: cameras,
+        start: cameras,
+        held: &[],
+        final_pass: true,
+    };
+    refine_from(
+        &start,
+        rig_from_camera,
+        world_from_rig,
+        observations,
+        options,
+    )
+}
+
+/// Where [`refine_from`] starts the intrinsics.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct IntrinsicsStart<'a> {
+    /// The camera file's cameras: the prior of every intrinsic, the value of the held ones.
+    pub prior: &'a [Camera],
+    /// The cameras to start from (the free intrinsics of an earlier pass).
+    pub start: &'a [Camera],
+    /// Parameters already found undetermined: (camera, index, observability).
+    pub held: &'a [(usize, usize, f64)],
+    /// Whether this is the final pass: it holds the parameters it finds undetermined and
+    /// refines again without them. A pass whose estimate only serves a next one lists them
+    /// (in [`CameraIntrinsics::held`]) for the next one to hold.
+    pub final_pass: bool,
+}
+
+/// [`refine`] from `intrinsics`' start.
+pub(crate) fn refine_from(
+    intrinsics: &IntrinsicsStart<'_>,
+    rig_from_camera: &[Isometry3<f64>],
+    world_from_rig: &[Isometry3<f64>],
+    observations: &[RigObservation],
+    options: &RefinementOptions,
+) -> Result<Refinement, CalibrationError> {
+    let prior = intrinsics.prior;
+    if intrinsics.start.len() != prior.len() {
+        return Err(CalibrationError::InvalidInput(format!(
+            "{} start cameras for {} cameras",
+            intrinsics.start.len(),
+            prior.len()
+        )));
+    }
+    // The start: the free intrinsics from `start`, the held ones at the prior.
+    let cameras = at_prior(intrinsics.start, prior, intrinsics.held)?;
+    let cameras = cameras.as_slice();
     let k = cameras.len();
     if rig_from_camera.len() != k || k == 0 {
         return Err(CalibrationError::InvalidInput(format!(
@@ -194,12 +297,14 @@ pub fn refine(
         world_from_rig: poses,
         observations: kept,
     };
-    let ba = RigRefinementOptions {
+    let mut ba = RigRefinementOptions {
         loss: RobustLoss::Cauchy {
             scale: options.cauchy_scale_px,
         },
         reference_camera: 0,
-        covariance: true,
+        // A first pass with intrinsics computes it too: it finds the undetermined ones.
+        covariance: intrinsics.final_pass || options.intrinsics != IntrinsicsSelection::None,
+        intrinsics: options.intrinsics,
         solver: SolverOptions {
             max_iterations: options.max_iterations,
             num_threads: REFINEMENT_THREADS,
@@ -207,9 +312,42 @@ pub fn refine(
         },
         ..Default::default()
     };
-    let result = problem.refine(&ba)?;
+    ba.held_intrinsics = intrinsics.held.iter().map(|&(c, p, _)| (c, p)).collect();
+    let mut result = problem.refine(&ba)?;
+    // Hold what the data does not determine, and refine again without it, from where the
+    // first solve ended.
+    let mut undetermined: Vec<(usize, usize, f64)> = intrinsics.held.to_vec();
+    let found: Vec<(usize, usize, f64)> = result
+        .observability
+        .iter()
+        .filter(|o| {
+            o.intrinsic && (o.observability < options.min_observability || !o.std_dev.is_finite())
+        })
+        .map(|o| (o.camera, o.index, o.observability))
+        .collect();
+    undetermined.extend(&found);
+    if !found.is_empty() && intrinsics.final_pass {
+        ba.held_intrinsics = undetermined.iter().map(|&(c, p, _)| (c, p)).collect();
+        let warm = RigRefinement {
+            cameras: at_prior(&result.cameras, prior, &undetermined)?,
+            rig_from_camera: result.rig_from_camera.clone(),
+            world_from_rig: result.world_from_rig.clone(),
+            observations: problem.observations.clone(),
+        };
+        result = warm.refine(&ba)?;
+    }
+    let n_intrinsics: usize = (0..k)
+        .map(|c| {
+            options
+                .intrinsics
+                .indices(&cameras[c])
+                .iter()
+                .filter(|&&p| !ba.held_intrinsics.contains(&(c, p)))
+                .count()
+        })
+        .sum();
     let residuals = 2 * problem.observations.len();
-    let unknowns = 6 * (k - 1) + 6 * problem.world_from_rig.len();
+    let unknowns = 6 * (k - 1) + 6 * problem.world_from_rig.len() + n_intrinsics;
     let factor = (residuals > unknowns)
         .then(|| 2.0 * result.summary.final_cost / (residuals - unknowns) as f64);
     let rig_from_camera_std = factor.and_then(|factor| {
@@ -223,6 +361,7 @@ pub fn refine(
             })
             .collect::<Option<Vec<PoseStd>>>()
     });
+    let intrinsics = camera_intrinsics(prior, &result, &undetermined, factor);
     let refined_poses = world_from_rig
         .iter()
         .enumerate()
@@ -237,6 +376,8 @@ pub fn refine(
     Ok(Refinement {
         rig_from_camera: result.rig_from_camera,
         world_from_rig: refined_poses,
+        cameras: result.cameras,
+        intrinsics,
         rig_from_camera_std,
         initial_cost: result.summary.initial_cost,
         final_cost: result.summary.final_cost,
@@ -244,6 +385,70 @@ pub fn refine(
         termination: result.summary.termination.name().to_owned(),
         converged: result.summary.termination.is_converged(),
     })
+}
+
+/// `cameras` with the parameters `held` (camera, index, observability) set to `prior`'s
+/// values.
+fn at_prior(
+    cameras: &[Camera],
+    prior: &[Camera],
+    held: &[(usize, usize, f64)],
+) -> Result<Vec<Camera>, CalibrationError> {
+    let mut out = cameras.to_vec();
+    for &(c, index, _) in held {
+        let (Some(camera), Some(&value)) = (
+            out.get_mut(c),
+            prior.get(c).and_then(|p| p.params().get(index)),
+        ) else {
+            continue;
+        };
+        let mut params = camera.params().to_vec();
+        if let Some(v) = params.get_mut(index) {
+            *v = value;
+        }
+        camera
+            .set_params(&params)
+            .map_err(|e| CalibrationError::InvalidInput(format!("camera {c}: {e}")))?;
+    }
+    Ok(out)
+}
+
+/// Per camera, its refined intrinsics (from `result`, standard deviations scaled by
+/// `factor`) and the held ones (`undetermined`: camera, index, observability).
+fn camera_intrinsics(
+    prior: &[Camera],
+    result: &RigRefinementResult,
+    undetermined: &[(usize, usize, f64)],
+    factor: Option<f64>,
+) -> Vec<CameraIntrinsics> {
+    let mut out = vec![CameraIntrinsics::default(); prior.len()];
+    for o in result.observability.iter().filter(|o| o.intrinsic) {
+        let (Some(entry), Some(before), Some(after)) = (
+            out.get_mut(o.camera),
+            prior.get(o.camera),
+            result.cameras.get(o.camera),
+        ) else {
+            continue;
+        };
+        entry.refined.push(IntrinsicParameter {
+            name: o.name,
+            index: o.index,
+            prior: before.params()[o.index],
+            value: after.params()[o.index],
+            std: factor.map_or(f64::NAN, |f| o.std_dev * f.sqrt()),
+            observability: o.observability,
+        });
+    }
+    for &(c, index, observability) in undetermined {
+        if let (Some(entry), Some(camera)) = (out.get_mut(c), prior.get(c)) {
+            entry.held.push(HeldIntrinsic {
+                name: camera.param_names()[index],
+                index,
+                observability,
+            });
+        }
+    }
+    out
 }
 
 /// Standard deviations in the rig frame of a pose `E` whose right-tangent (`E Exp(delta)`,

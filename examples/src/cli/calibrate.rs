@@ -69,7 +69,9 @@ fn calibrate_inputs<D: Descriptor>(
                 .map_err(|source| CliError::Vocabulary { source })
         })
         .transpose()?;
-    let calibration = calibrate_with(map, log, rig, &args.hand_eye.options(), vocabulary, bars)?;
+    let mut options = args.hand_eye.options();
+    options.refinement.intrinsics = args.refine_intrinsics.selection();
+    let calibration = calibrate_with(map, log, rig, &options, vocabulary, bars)?;
     finish(&calibration, truth, Some(&args.out), args.json, args.quiet)
 }
 

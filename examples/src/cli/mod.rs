@@ -14,6 +14,7 @@ use std::io::Write as _;
 use std::path::{Path, PathBuf};
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
+use ibc_bundle_adjust::IntrinsicsSelection;
 use ibc_pipeline::calib::{CalibrationOptions, HandEyeMethod, HandEyeOptions};
 
 pub use error::CliError;
@@ -44,6 +45,33 @@ pub enum HandEyeArg {
     SixDof,
     /// No hand-eye calibration.
     None,
+}
+
+/// The intrinsics `ibc calibrate` refines, as the command line names them.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, ValueEnum)]
+pub enum IntrinsicsArg {
+    /// None: the camera file's intrinsics are held.
+    #[default]
+    None,
+    /// The focal lengths.
+    Focal,
+    /// The focal lengths and the principal point.
+    #[value(name = "focal+center")]
+    FocalCenter,
+    /// Every parameter of the model, distortion included.
+    All,
+}
+
+impl IntrinsicsArg {
+    /// The selection it names.
+    pub fn selection(self) -> IntrinsicsSelection {
+        match self {
+            Self::None => IntrinsicsSelection::None,
+            Self::Focal => IntrinsicsSelection::Focal,
+            Self::FocalCenter => IntrinsicsSelection::FocalAndCenter,
+            Self::All => IntrinsicsSelection::All,
+        }
+    }
 }
 
 impl HandEyeArg {
@@ -185,6 +213,15 @@ pub struct CalibrateArgs {
     /// The hand-eye method between the rig and its odometry.
     #[arg(long, value_enum, value_name = "METHOD", default_value_t = HandEyeArg::Auto)]
     pub hand_eye: HandEyeArg,
+    /// The intrinsics refined with the extrinsics against the map, for every camera (`focal`,
+    /// `focal+center` or `all`, distortion included). Default `none`: the camera file's are
+    /// held, which gives the most precise extrinsics when they are right (freeing the
+    /// principal points costs the rotations ten times their precision, a shifted principal
+    /// point being nearly a turned camera); a stale camera file is flagged by the quality
+    /// gates, and this option then corrects it. Parameters the data does not determine are
+    /// held and listed in the report.
+    #[arg(long, value_enum, value_name = "SET", default_value_t = IntrinsicsArg::None)]
+    pub refine_intrinsics: IntrinsicsArg,
 }
 
 /// Options of `ibc selfcalib`.

@@ -122,6 +122,9 @@ pub struct GroundTruth {
     pub pixel_noise_px: f64,
     /// The log's camera names, in its order (empty when the file does not say: older files).
     pub camera_names: Vec<String>,
+    /// The true intrinsics of each camera during the log (CamOdoCal order, the camera file's
+    /// model); empty when the file does not say (older files).
+    pub intrinsics: Vec<Vec<f64>>,
 }
 
 /// Why a ground truth is not the truth of a rig log.

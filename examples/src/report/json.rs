@@ -19,7 +19,11 @@
 //!     "reprojection_px": {"initial": {"mean": 0.7, "rms": 0.8, "mad": 0.55},
 //!                         "final": {"mean": 0.62, "rms": 0.7, "mad": 0.5}},
 //!     "outlier_fraction": 0.0,
-//!     "residual_pattern": {"pattern_px": 0.03, "noise_px": 0.01, "chi2_per_dof": 1.1}
+//!     "residual_pattern": {"pattern_px": 0.03, "noise_px": 0.01, "chi2_per_dof": 1.1},
+//!     "intrinsics": [-0.01, 0.002, 0.0, 0.0, 391.0, 391.9, 640.1, 480.2],
+//!     "intrinsics_refinement": {"refined": [{"name": "mu", "camera_file": 395.0,
+//!         "refined": 391.0, "std": 0.01, "observability": 0.3, "error": 0.01}, ...],
+//!         "held": [{"name": "k4", "observability": 0.00002}]} or null
 //!   }, ...],
 //!   "status": "ok",
 //!   "warnings": [{"kind": "systematic_residuals", "camera": "left", "message": "..."}],
@@ -45,6 +49,43 @@ use crate::calib::{
     Timing,
 };
 use crate::data::GroundTruth;
+
+/// What the refinement did with camera `c`'s intrinsics, `None` when none was selected.
+fn intrinsics_json(
+    calibration: &Calibration,
+    truth: Option<&GroundTruth>,
+    c: usize,
+) -> Option<IntrinsicsRefinementJson> {
+    let i = calibration.refinement.intrinsics.get(c)?;
+    if i.refined.is_empty() && i.held.is_empty() {
+        return None;
+    }
+    let true_params = truth.and_then(|t| t.intrinsics.get(c));
+    Some(IntrinsicsRefinementJson {
+        refined: i
+            .refined
+            .iter()
+            .map(|p| IntrinsicJson {
+                name: p.name.to_owned(),
+                camera_file: p.prior,
+                refined: p.value,
+                std: finite(p.std),
+                observability: p.observability,
+                error: true_params
+                    .and_then(|t| t.get(p.index))
+                    .map(|t| p.value - t),
+            })
+            .collect(),
+        held: i
+            .held
+            .iter()
+            .map(|h| HeldIntrinsicJson {
+                name: h.name.to_owned(),
+                observability: h.observability,
+            })
+            .collect(),
+    })
+}
 
 /// The value of [`Report::format`].
 pub const REPORT_FORMAT: &str = "ibc-calibration-report";
@@ -139,6 +180,47 @@ pub struct CameraJson {
     pub outlier_fraction: f64,
     /// The pattern of its refined residuals over the image, `null` when too few to measure.
     pub residual_pattern: Option<PatternJson>,
+    /// Its intrinsics as the calibration carries them (CamOdoCal order, the camera file's
+    /// model).
+    pub intrinsics: Vec<f64>,
+    /// With `--refine-intrinsics`: what the refinement did with them; `null` when they were
+    /// held.
+    pub intrinsics_refinement: Option<IntrinsicsRefinementJson>,
+}
+
+/// One refined intrinsic parameter.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct IntrinsicJson {
+    /// Its name in the model (`mu`, `fx`, `u0`, `k1`, ...).
+    pub name: String,
+    /// The camera file's value.
+    pub camera_file: f64,
+    /// The refined value.
+    pub refined: f64,
+    /// Its standard deviation (`null` when not available).
+    pub std: Option<f64>,
+    /// Its observability in [0, 1] (1 / variance-inflation factor).
+    pub observability: f64,
+    /// With ground truth: refined minus true value.
+    pub error: Option<f64>,
+}
+
+/// A selected intrinsic parameter held because the data does not determine it.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct HeldIntrinsicJson {
+    /// Its name in the model.
+    pub name: String,
+    /// Its observability when free (below the threshold).
+    pub observability: f64,
+}
+
+/// What the refinement did with one camera's intrinsics.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct IntrinsicsRefinementJson {
+    /// The refined parameters.
+    pub refined: Vec<IntrinsicJson>,
+    /// The selected parameters held at the camera file's values.
+    pub held: Vec<HeldIntrinsicJson>,
 }
 
 /// Statistics of a camera's residuals at one estimate (see [`ResidualStats`]).
@@ -394,6 +476,9 @@ impl Report {
                     reprojection_px: CameraReprojectionJson::new(quality),
                     outlier_fraction: quality.map_or(0.0, |q| q.outlier_fraction),
                     residual_pattern: quality.and_then(|q| q.pattern).map(PatternJson::from),
+                    intrinsics: ibc_camera_models::CameraModel::params(&calibration.cameras[c])
+                        .to_vec(),
+                    intrinsics_refinement: intrinsics_json(calibration, truth, c),
                 }
             })
             .collect();

@@ -78,6 +78,36 @@ fn quality_rows(s: &mut String, report: &Report) {
     }
 }
 
+/// The refined intrinsics, a line per camera: each parameter's camera-file and refined values
+/// with its standard deviation, then the held ones.
+fn intrinsics_rows(s: &mut String, report: &Report) {
+    for c in &report.cameras {
+        let Some(r) = &c.intrinsics_refinement else {
+            continue;
+        };
+        let refined: Vec<String> = r
+            .refined
+            .iter()
+            .map(|p| {
+                let std = p.std.map_or_else(|| "?".to_owned(), |v| format!("{v:.3}"));
+                format!(
+                    "{} {:.3} -> {:.3} ({std})",
+                    p.name, p.camera_file, p.refined
+                )
+            })
+            .collect();
+        let _ = writeln!(s, "intrinsics of {}: {}", c.name, refined.join(", "));
+        if !r.held.is_empty() {
+            let held: Vec<&str> = r.held.iter().map(|h| h.name.as_str()).collect();
+            let _ = writeln!(
+                s,
+                "  held at the camera file (the data does not determine them): {}",
+                held.join(", ")
+            );
+        }
+    }
+}
+
 /// The text summary (see the module docs).
 pub fn text_table(report: &Report) -> String {
     let mut s = String::new();
@@ -170,7 +200,7 @@ pub fn text_table(report: &Report) -> String {
             let doubt = if report
                 .warnings
                 .iter()
-                .any(|w| w.camera.as_ref() == Some(&c.name))
+                .any(|w| w.camera.as_ref() == Some(&c.name) && w.kind != "intrinsics_changed")
             {
                 " (doubtful: see the warnings)"
             } else {
@@ -187,6 +217,7 @@ pub fn text_table(report: &Report) -> String {
     if !moved.is_empty() {
         let _ = writeln!(s, "changed since the camera file: {}", moved.join("; "));
     }
+    intrinsics_rows(&mut s, report);
     let _ = writeln!(s);
     quality_rows(&mut s, report);
     let _ = writeln!(s);

@@ -3,7 +3,7 @@
 
 use std::path::{Path, PathBuf};
 
-use ibc_camera_models::{CameraModel, Rig};
+use ibc_camera_models::{Camera, CameraModel, Rig};
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 
 use super::environment::EnvironmentKind;
@@ -60,10 +60,13 @@ pub fn default_mount(motion: Motion) -> Isometry3<f64> {
     mount(Vector3::new(0.0, 0.0, height), 0.0, 0.0, 0.0)
 }
 
-/// How the calibrated rig differs from the configuration that built the map: a camera moved
-/// and turned. The new extrinsic is `Translation(translation_m) * rig_from_camera *
+/// How the calibrated rig differs from the configuration that built the map (whose camera
+/// file the calibration gets): a camera moved and turned, and its lens changed (temperature,
+/// a knock). The new extrinsic is `Translation(translation_m) * rig_from_camera *
 /// Rotation(rotation_deg)`: the translation is in the rig (vehicle) frame, the rotation vector
-/// (degrees, about the axis it points along) in the camera's own frame, about its centre.
+/// (degrees, about the axis it points along) in the camera's own frame, about its centre. The
+/// new intrinsics: both focal lengths times `1 + focal_change`, the principal point moved by
+/// `principal_point_change_px`; the camera file keeps the old ones.
 #[derive(Clone, Debug, PartialEq)]
 pub struct CameraChange {
     /// The camera's name.
@@ -72,6 +75,11 @@ pub struct CameraChange {
     pub translation_m: Vector3<f64>,
     /// Rotation vector in the camera frame, degrees.
     pub rotation_deg: Vector3<f64>,
+    /// Relative change of both focal lengths (`-0.0099`: the true ones 0.99 % shorter than the
+    /// camera file's, which is then 1 % long). In (-0.5, 0.5).
+    pub focal_change: f64,
+    /// Change of the principal point, pixels.
+    pub principal_point_change_px: [f64; 2],
 }
 
 impl CameraChange {
@@ -81,6 +89,20 @@ impl CameraChange {
             camera: camera.to_owned(),
             translation_m,
             rotation_deg: Vector3::zeros(),
+            focal_change: 0.0,
+            principal_point_change_px: [0.0; 2],
+        }
+    }
+
+    /// A camera whose lens changed: focal lengths times `1 + focal_change`, principal point
+    /// moved by `principal_point_change_px`.
+    pub fn lens(camera: &str, focal_change: f64, principal_point_change_px: [f64; 2]) -> Self {
+        Self {
+            camera: camera.to_owned(),
+            translation_m: Vector3::zeros(),
+            rotation_deg: Vector3::zeros(),
+            focal_change,
+            principal_point_change_px,
         }
     }
 
@@ -90,7 +112,41 @@ impl CameraChange {
             camera: camera.to_owned(),
             translation_m: Vector3::zeros(),
             rotation_deg: axis.normalize() * degrees,
+            focal_change: 0.0,
+            principal_point_change_px: [0.0; 2],
         }
+    }
+
+    /// Whether the lens changed.
+    pub fn changes_intrinsics(&self) -> bool {
+        self.focal_change != 0.0 || self.principal_point_change_px != [0.0; 2]
+    }
+
+    /// The changed intrinsics of `camera`.
+    ///
+    /// # Errors
+    /// [`SimError::Invalid`] naming the camera when its model refuses them.
+    pub fn apply_to_intrinsics(&self, camera: &mut Camera) -> Result<(), SimError> {
+        if !self.changes_intrinsics() {
+            return Ok(());
+        }
+        let mut params = camera.params().to_vec();
+        for i in camera.focal_length_indices() {
+            params[i] *= 1.0 + self.focal_change;
+        }
+        for (i, d) in camera
+            .principal_point_indices()
+            .into_iter()
+            .zip(self.principal_point_change_px)
+        {
+            params[i] += d;
+        }
+        camera.set_params(&params).map_err(|e| {
+            SimError::Invalid(format!(
+                "the lens change of camera `{}` is not valid for its model: {e}",
+                self.camera
+            ))
+        })
     }
 
     /// The changed extrinsic.
@@ -370,6 +426,7 @@ impl Scenario {
                     ))
                 })?;
             camera.rig_from_camera = change.apply(&camera.rig_from_camera);
+            change.apply_to_intrinsics(&mut camera.camera)?;
         }
         Ok(rig)
     }
@@ -406,11 +463,18 @@ impl Scenario {
                 .translation_m
                 .iter()
                 .chain(c.rotation_deg.iter())
+                .chain(&c.principal_point_change_px)
                 .all(|v| v.is_finite());
             if !finite {
                 return Err(SimError::Invalid(format!(
                     "the change of camera `{}` has a non-finite value",
                     c.camera
+                )));
+            }
+            if !(c.focal_change > -0.5 && c.focal_change < 0.5) {
+                return Err(SimError::Invalid(format!(
+                    "the change of camera `{}` has focal_change = {}, not in (-0.5, 0.5)",
+                    c.camera, c.focal_change
                 )));
             }
         }

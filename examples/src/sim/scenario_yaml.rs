@@ -24,6 +24,8 @@
 //!   - camera: left             # a camera name or index
 //!     translation_m: [0.097, 0, 0]   # in the rig (vehicle) frame
 //!     rotation_deg: [0, 0, 0]        # rotation vector about the camera's own axes
+//!     focal_change: 0.0              # the lens: focal lengths times 1 + this (the camera
+//!     principal_point_change_px: [0, 0]  # file keeps the old intrinsics)
 //! trajectory:
 //!   motion: drive              # drive (planar) | handheld (6-DoF)
 //!   frames: 500                # calibration frames at scale 1
@@ -152,17 +154,28 @@ impl Parser<'_> {
         }
     }
 
-    fn vec3(&self, node: &Yaml, key: &str) -> Result<Vector3<f64>, SimError> {
-        let wrong = || self.err(format!("`{key}` must be a list of 3 numbers"));
+    /// A list of `N` finite numbers.
+    fn numbers_list<const N: usize>(&self, node: &Yaml, key: &str) -> Result<[f64; N], SimError> {
+        let wrong = || self.err(format!("`{key}` must be a list of {N} numbers"));
         let Yaml::Array(items) = node else {
             return Err(wrong());
         };
-        if items.len() != 3 {
+        if items.len() != N {
             return Err(wrong());
         }
-        let v: Result<Vec<f64>, SimError> = items.iter().map(|i| self.number(i, key)).collect();
-        let v = v.map_err(|_| wrong())?;
-        Ok(Vector3::new(v[0], v[1], v[2]))
+        let mut out = [0.0; N];
+        for (o, i) in out.iter_mut().zip(items) {
+            *o = self.number(i, key).map_err(|_| wrong())?;
+        }
+        Ok(out)
+    }
+
+    fn vec3(&self, node: &Yaml, key: &str) -> Result<Vector3<f64>, SimError> {
+        self.numbers_list::<3>(node, key).map(Vector3::from)
+    }
+
+    fn vec2(&self, node: &Yaml, key: &str) -> Result<[f64; 2], SimError> {
+        self.numbers_list::<2>(node, key)
     }
 
     fn pose(&self, node: &Yaml, key: &str) -> Result<Isometry3<f64>, SimError> {
@@ -428,7 +441,17 @@ impl Parser<'_> {
         for (i, item) in items.iter().enumerate() {
             let key = format!("changes[{i}]");
             let h = self.mapping(item, &key)?;
-            self.known_keys(h, &["camera", "translation_m", "rotation_deg"], &key)?;
+            self.known_keys(
+                h,
+                &[
+                    "camera",
+                    "translation_m",
+                    "rotation_deg",
+                    "focal_change",
+                    "principal_point_change_px",
+                ],
+                &key,
+            )?;
             let get = |k: &str| h.get(&yk(k));
             let camera = match get("camera") {
                 Some(Yaml::Integer(k)) => usize::try_from(*k)
@@ -461,10 +484,20 @@ impl Parser<'_> {
                 .map(|n| self.vec3(n, &format!("{key}.rotation_deg")))
                 .transpose()?
                 .unwrap_or_else(Vector3::zeros);
+            let focal_change = get("focal_change")
+                .map(|n| self.number(n, &format!("{key}.focal_change")))
+                .transpose()?
+                .unwrap_or(0.0);
+            let principal_point_change_px = get("principal_point_change_px")
+                .map(|n| self.vec2(n, &format!("{key}.principal_point_change_px")))
+                .transpose()?
+                .unwrap_or([0.0; 2]);
             out.push(CameraChange {
                 camera,
                 translation_m,
                 rotation_deg,
+                focal_change,
+                principal_point_change_px,
             });
         }
         Ok(out)
@@ -620,6 +653,11 @@ impl Scenario {
                 writeln!(y, "  - camera: {}", quoted(&c.camera))?;
                 writeln!(y, "    translation_m: {}", vec3(&c.translation_m))?;
                 writeln!(y, "    rotation_deg: {}", vec3(&c.rotation_deg))?;
+                if c.changes_intrinsics() {
+                    writeln!(y, "    focal_change: {}", num(c.focal_change))?;
+                    let [u, v] = c.principal_point_change_px;
+                    writeln!(y, "    principal_point_change_px: [{}, {}]", num(u), num(v))?;
+                }
             }
         }
         let t = &self.trajectory;

@@ -304,6 +304,12 @@ impl SimulatedWorld {
                 .then_some(true_rig.rig_from_odometry),
             pixel_noise_px: scenario.noise.pixel_sigma_px,
             camera_names: log.camera_names.clone(),
+            intrinsics: true_rig
+                .rig
+                .cameras
+                .iter()
+                .map(|c| c.camera.params().to_vec())
+                .collect(),
         };
         Ok(Self {
             scenario: scenario.clone(),

@@ -50,6 +50,8 @@ struct JsonTruth {
     rig_from_camera: Vec<JsonPose>,
     rig_from_odometry: Option<JsonPose>,
     world_from_rig: Vec<JsonPose>,
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    intrinsics: Vec<Vec<f64>>,
 }
 
 /// The ground truth as pretty-printed JSON.
@@ -67,9 +69,14 @@ pub fn truth_to_json(truth: &GroundTruth) -> Result<String, serde_json::Error> {
         rig_from_camera: truth.rig_from_camera.iter().map(JsonPose::from).collect(),
         rig_from_odometry: truth.rig_from_odometry.as_ref().map(JsonPose::from),
         world_from_rig: truth.world_from_rig.iter().map(JsonPose::from).collect(),
+        intrinsics: truth.intrinsics.clone(),
     };
-    if !truth.pixel_noise_px.is_finite() {
-        return Err(serde::ser::Error::custom("pixel_noise_px is not finite"));
+    if !truth.pixel_noise_px.is_finite()
+        || truth.intrinsics.iter().flatten().any(|v| !v.is_finite())
+    {
+        return Err(serde::ser::Error::custom(
+            "pixel_noise_px or an intrinsic parameter is not finite",
+        ));
     }
     let mut s = serde_json::to_string_pretty(&j)?;
     s.push('\n');
@@ -110,6 +117,16 @@ pub fn truth_from_json(text: &str) -> Result<GroundTruth, serde_json::Error> {
             j.rig_from_camera.len()
         )));
     }
+    if !j.intrinsics.is_empty() && j.intrinsics.len() != j.rig_from_camera.len() {
+        return Err(Error::custom(format!(
+            "{} intrinsics for {} rig_from_camera",
+            j.intrinsics.len(),
+            j.rig_from_camera.len()
+        )));
+    }
+    if j.intrinsics.iter().flatten().any(|v| !v.is_finite()) {
+        return Err(Error::custom("intrinsics must be finite"));
+    }
     let poses = |v: &[JsonPose], what: &str| -> Result<Vec<Isometry3<f64>>, serde_json::Error> {
         v.iter()
             .enumerate()
@@ -128,5 +145,6 @@ pub fn truth_from_json(text: &str) -> Result<GroundTruth, serde_json::Error> {
             .transpose()?,
         pixel_noise_px: j.pixel_noise_px,
         camera_names: j.camera_names,
+        intrinsics: j.intrinsics,
     })
 }
