@@ -38,7 +38,7 @@ use crate::manifold::{Se3Manifold, se3_from_params, se3_from_unit_params, se3_to
 use crate::options::SolverOptions;
 use crate::problem::{ParameterBlockId, Problem};
 use crate::rig_ba_cost::{
-    Intrinsics, free_intrinsics, full_intrinsic_covariance, refined_cameras,
+    Intrinsics, add_intrinsics_blocks, free_intrinsics, full_intrinsic_covariance, refined_cameras,
     validate_held_intrinsics,
 };
 use crate::rig_bundle_adjustment::{
@@ -491,19 +491,7 @@ impl RigRefinement {
             .iter()
             .map(|p| problem.add_manifold_block(p, Se3Manifold))
             .collect::<Result<Vec<_>>>()?;
-        let intrinsics = free
-            .iter()
-            .map(|f| {
-                f.as_ref()
-                    .map(|f| {
-                        Ok((
-                            problem.add_parameter_block(&f.values)?,
-                            f.cache.free.clone(),
-                        ))
-                    })
-                    .transpose()
-            })
-            .collect::<Result<Vec<_>>>()?;
+        let intrinsics = add_intrinsics_blocks(&mut problem, &free)?;
         for &f in &world_from_rig {
             problem.set_eliminated(f, true)?;
         }

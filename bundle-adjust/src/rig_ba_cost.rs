@@ -169,6 +169,29 @@ pub(crate) fn free_intrinsics(
         .collect()
 }
 
+/// A camera's block of free intrinsics and the free parameters' indices (CamOdoCal order).
+pub(crate) type IntrinsicsBlock = Option<(ParameterBlockId, Vec<usize>)>;
+
+/// Adds a parameter block for each camera's free intrinsics to `problem`: per camera, the
+/// block and the free parameters' indices, `None` where every parameter is held.
+pub(crate) fn add_intrinsics_blocks(
+    problem: &mut Problem,
+    free: &[Option<FreeIntrinsics>],
+) -> Result<Vec<IntrinsicsBlock>> {
+    free.iter()
+        .map(|f| {
+            f.as_ref()
+                .map(|f| {
+                    Ok((
+                        problem.add_parameter_block(&f.values)?,
+                        f.cache.free.clone(),
+                    ))
+                })
+                .transpose()
+        })
+        .collect()
+}
+
 /// A typed error when a `(camera, parameter)` of `held` names no camera or no parameter.
 pub(crate) fn validate_held_intrinsics(cameras: &[Camera], held: &[(usize, usize)]) -> Result<()> {
     let invalid = |reason| BundleAdjustError::InvalidOption {
@@ -199,7 +222,7 @@ pub(crate) fn validate_held_intrinsics(cameras: &[Camera], held: &[(usize, usize
 /// [`BundleAdjustError::RefinedIntrinsicsRejected`] when a model refuses its refined values.
 pub(crate) fn refined_cameras(
     cameras: &[Camera],
-    blocks: &[Option<(ParameterBlockId, Vec<usize>)>],
+    blocks: &[IntrinsicsBlock],
     problem: &Problem,
 ) -> Result<Vec<Camera>> {
     let mut refined = cameras.to_vec();

@@ -80,8 +80,8 @@ use crate::program::{NONE, Program};
 use crate::reduced::{ReducedLayout, TargetKind};
 use crate::rig::{check_pose, check_rig_coverage};
 use crate::rig_ba_cost::{
-    Intrinsics, PointDistancePrior, RigBaReprojection, SpherePoseManifold, free_intrinsics,
-    full_intrinsic_covariance, refined_cameras, validate_held_intrinsics,
+    Intrinsics, PointDistancePrior, RigBaReprojection, SpherePoseManifold, add_intrinsics_blocks,
+    free_intrinsics, full_intrinsic_covariance, refined_cameras, validate_held_intrinsics,
 };
 use crate::schur::SchurComplement;
 use crate::summary::Summary;
@@ -687,19 +687,7 @@ impl RigBundleAdjustment {
                 _ => problem.add_manifold_block(p, Se3Manifold),
             })
             .collect::<Result<Vec<_>>>()?;
-        let intrinsics = free
-            .iter()
-            .map(|f| {
-                f.as_ref()
-                    .map(|f| {
-                        Ok((
-                            problem.add_parameter_block(&f.values)?,
-                            f.cache.free.clone(),
-                        ))
-                    })
-                    .transpose()
-            })
-            .collect::<Result<Vec<_>>>()?;
+        let intrinsics = add_intrinsics_blocks(&mut problem, &free)?;
         let soft_point = match options.scale {
             ScaleGauge::PointDistance { points: [_, b], .. } => Some(b),
             _ => None,

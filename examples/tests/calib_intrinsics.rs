@@ -13,7 +13,7 @@
 
 mod calib_common;
 
-use calib_common::{print, worst};
+use calib_common::{flagged, print, worst};
 use ibc_bundle_adjust::IntrinsicsSelection;
 use ibc_pipeline::calib::{
     Accuracy, Calibration, CalibrationOptions, RefinementOptions, Status, calibrate,
@@ -98,15 +98,6 @@ fn assert_extrinsics_within_bars(calibration: &Calibration, accuracy: &Accuracy)
     }
 }
 
-fn notices(calibration: &Calibration) -> Vec<(&'static str, String)> {
-    calibration
-        .quality
-        .warnings
-        .iter()
-        .map(|w| (w.kind(), w.camera().unwrap_or("").to_owned()))
-        .collect()
-}
-
 #[test]
 fn a_stale_camera_file_is_corrected_and_named() {
     let (_, calibration, accuracy) = run(
@@ -123,7 +114,7 @@ fn a_stale_camera_file_is_corrected_and_named() {
     // Each camera named twice: its focal length and its principal point moved.
     assert_eq!(calibration.quality.status(), Status::Ok);
     for name in &calibration.camera_names {
-        let mine = notices(&calibration)
+        let mine = flagged(&calibration)
             .iter()
             .filter(|(k, c)| *k == "intrinsics_changed" && c == name)
             .count();
@@ -157,7 +148,7 @@ fn a_stale_camera_file_is_corrected_and_named() {
     assert_eq!(held.quality.status(), Status::Poor);
     for name in &held.camera_names {
         assert!(
-            notices(&held).contains(&("systematic_residuals", name.clone())),
+            flagged(&held).contains(&("systematic_residuals", name.clone())),
             "{name}: {:?}",
             held.quality.warnings
         );
@@ -172,7 +163,7 @@ fn one_wrong_focal_length_is_found_and_fixed_alone() {
         IntrinsicsSelection::FocalAndCenter,
     );
     assert_eq!(
-        notices(&calibration),
+        flagged(&calibration),
         vec![("intrinsics_changed", "left".to_owned())]
     );
     assert_extrinsics_within_bars(&calibration, &accuracy);
@@ -202,7 +193,7 @@ fn refining_exact_intrinsics_changes_nothing_beyond_its_standard_deviations() {
         "{:?}",
         free.quality.warnings
     );
-    assert!(notices(&free).is_empty());
+    assert!(flagged(&free).is_empty());
     for intrinsics in &free.refinement.intrinsics {
         for p in &intrinsics.refined {
             assert!((p.value - p.prior).abs() <= 3.0 * p.std, "{p:?}");

@@ -2,6 +2,9 @@
 //! The quality gates (issue 14): wrong prior intrinsics are reported as such, never as a moved
 //! camera with sub-millimetre standard deviations; the true intrinsics pass every gate.
 
+mod calib_common;
+
+use calib_common::flagged;
 use ibc_camera_models::{Camera, CameraModel, Rig};
 use ibc_pipeline::calib::{Calibration, CalibrationOptions, CalibrationWarning, Status, calibrate};
 use ibc_pipeline::report::{Report, text_table};
@@ -36,15 +39,6 @@ fn calibrate_with_edit(
     let report = Report::new(&calibration, Some(&world.truth)).unwrap();
     println!("{name}:\n{}", text_table(&report));
     (world, calibration)
-}
-
-fn flagged(calibration: &Calibration) -> Vec<(&'static str, String)> {
-    calibration
-        .quality
-        .warnings
-        .iter()
-        .map(|w| (w.kind(), w.camera().unwrap_or("").to_owned()))
-        .collect()
 }
 
 #[test]

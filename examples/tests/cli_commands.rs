@@ -300,3 +300,69 @@ fn refine_intrinsics_corrects_a_stale_camera_file_and_writes_the_refined_ones() 
     assert_eq!(o.status.code(), Some(2));
     assert!(stderr(&o).contains("focal+center"), "{}", stderr(&o));
 }
+
+#[test]
+fn online_replays_the_log_and_follows_a_drifting_focal_length() {
+    // Every focal length drifts +0.5 % over the drive (a scenario file's `focal_drift`).
+    let dir = tempfile::tempdir().unwrap();
+    let mut yaml = String::from("version: 1\nbase: garage\nscale: 0.5\nchanges:\n");
+    for name in ["front", "left", "rear", "right"] {
+        yaml.push_str(&format!("  - camera: {name}\n    focal_drift: 0.005\n"));
+    }
+    let scenario = dir.path().join("drift.yaml");
+    std::fs::write(&scenario, yaml).unwrap();
+    let world = dir.path().join("world");
+    let path = |name: &str| world.join(name).to_str().unwrap().to_owned();
+    let o = ibc(&[
+        "simulate",
+        "--quiet",
+        "--scenario",
+        scenario.to_str().unwrap(),
+        "--out",
+        world.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = ibc(&[
+        "calibrate",
+        "--quiet",
+        "--map",
+        &path("map.ibcmap"),
+        "--log",
+        &path("log.ibclog"),
+        "--cameras",
+        &path("camchain.yaml"),
+        "--truth",
+        &path("truth.json"),
+        "--out",
+        &path("out"),
+        "--online",
+    ]);
+    let out = stdout(&o);
+    let (mut updates, mut skips, mut checks, mut within) = (0, 0, 0, 0);
+    let mut worst = 0.0f64;
+    for line in out.lines().filter(|l| l.starts_with("online, frame set")) {
+        if line.contains("skipped: the rig turned") {
+            skips += 1;
+            continue;
+        }
+        assert!(line.contains("updated: "), "{line}");
+        updates += 1;
+        // `mu 396.606 (std 0.016, error +0.048)` per focal length.
+        for part in line.split("(std ").skip(1) {
+            let (std, rest) = part.split_once(", error ").unwrap();
+            let error = rest.split(')').next().unwrap();
+            let k = error.parse::<f64>().unwrap().abs() / std.parse::<f64>().unwrap();
+            worst = worst.max(k);
+            checks += 1;
+            within += usize::from(k <= 3.0);
+        }
+    }
+    // The drive starts straight: the first due updates are skipped, and say why.
+    assert!(skips >= 1 && updates >= 10, "{out}");
+    assert_eq!(checks, updates * 8);
+    assert!(
+        within as f64 >= 0.95 * checks as f64,
+        "{within} of {checks}\n{out}"
+    );
+    assert!(worst <= 4.0, "{worst}\n{out}");
+}

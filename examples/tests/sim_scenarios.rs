@@ -244,7 +244,7 @@ fn lens_changes_reach_the_log_not_the_camera_file_and_round_trip() {
     let s = Scenario::from_yaml_str(text, Path::new(".")).unwrap();
     let back = Scenario::from_yaml_str(&s.to_yaml_string(), Path::new(".")).unwrap();
     assert_eq!(back, s);
-    let world = ibc_pipeline::sim::SimulatedWorld::simulate(&s).unwrap();
+    let world = SimulatedWorld::simulate(&s).unwrap();
     // The camera file (the map-building rig) keeps the old lens; the truth holds the new one.
     let old = ibc_camera_models::CameraModel::params(&world.map_rig.cameras[1].camera).to_vec();
     let new = &world.truth.intrinsics[1];

@@ -28,6 +28,7 @@ pub mod hand_eye;
 pub mod initialization;
 pub mod localization;
 pub mod map_index;
+pub mod online;
 mod options;
 mod pipeline;
 mod progress;
@@ -45,6 +46,7 @@ pub use localization::{
     localize_image, localize_log,
 };
 pub use map_index::{MapIndex, train_vocabulary};
+pub use online::{OnlineStep, replay_online};
 pub use options::{
     CalibrationOptions, FrameSetOptions, HandEyeMethod, HandEyeOptions, InitializationOptions,
     LocalizationOptions, RefinementOptions, VocabularyOptions, default_pose_options,

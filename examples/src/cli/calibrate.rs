@@ -3,8 +3,10 @@
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
+use ibc_bundle_adjust::{OnlineEvent, OnlineOptions};
+use ibc_camera_models::CameraModel;
 use ibc_camera_models::Rig;
-use ibc_pipeline::calib::{Calibration, Status, calibrate_with};
+use ibc_pipeline::calib::{Calibration, Status, calibrate_with, replay_online};
 use ibc_pipeline::colmap::{
     ColmapDatabase, ColmapDescriptor, ColmapLogOptions, read_colmap_log, read_colmap_map,
 };
@@ -72,7 +74,90 @@ fn calibrate_inputs<D: Descriptor>(
     let mut options = args.hand_eye.options();
     options.refinement.intrinsics = args.refine_intrinsics.selection();
     let calibration = calibrate_with(map, log, rig, &options, vocabulary, bars)?;
-    finish(&calibration, truth, Some(&args.out), args.json, args.quiet)
+    let online = args
+        .online
+        .then(|| online_lines(&calibration, map, log, truth))
+        .transpose()?;
+    let outcome = finish(&calibration, truth, Some(&args.out), args.json, args.quiet)?;
+    if let Some(lines) = online {
+        // After the table on standard output; beside the JSON on standard error.
+        if args.json {
+            if !args.quiet {
+                eprint!("{lines}");
+            }
+        } else {
+            print(&lines)?;
+        }
+    }
+    Ok(outcome)
+}
+
+/// The online calibrator's running estimate over the log ([`replay_online`]), a line per due
+/// update: each camera's focal lengths with their standard deviations and, with `truth`,
+/// their errors against the truth at the window's middle frame; or why the update was
+/// skipped.
+fn online_lines<D: Descriptor>(
+    calibration: &Calibration,
+    map: &Map<D>,
+    log: &RigLog<D>,
+    truth: Option<&GroundTruth>,
+) -> Result<String, CliError> {
+    let options = OnlineOptions::default();
+    let steps = replay_online(calibration, map, log, &options)?;
+    let mut out = String::new();
+    for step in &steps {
+        let line = match &step.event {
+            OnlineEvent::Updated(update) => {
+                // The window's middle frame set, and its log frame.
+                let middle = step.set + 1 - options.window / 2;
+                let frame = calibration
+                    .frame_sets
+                    .get(middle)
+                    .map_or(step.frame, |s| s.frame);
+                let cameras: Vec<String> = update
+                    .cameras
+                    .iter()
+                    .enumerate()
+                    .map(|(c, camera)| {
+                        let name = calibration.camera_names.get(c).map_or("?", String::as_str);
+                        let cov = update.intrinsic_covariance.get(c).and_then(Option::as_ref);
+                        let truth = truth.and_then(|t| t.camera_at(c, frame, camera));
+                        let focal: Vec<String> = camera
+                            .focal_length_indices()
+                            .iter()
+                            .map(|&i| {
+                                let value = camera.params()[i];
+                                let std = cov.map_or(f64::NAN, |m| m[(i, i)].max(0.0).sqrt());
+                                let error = truth.as_ref().map_or(String::new(), |t| {
+                                    format!(", error {:+.3}", value - t.params()[i])
+                                });
+                                format!(
+                                    "{} {value:.3} (std {std:.3}{error})",
+                                    camera.param_names()[i]
+                                )
+                            })
+                            .collect();
+                        format!("{name} {}", focal.join(" "))
+                    })
+                    .collect();
+                format!("updated: {}", cameras.join("; "))
+            }
+            OnlineEvent::Skipped(reason) => format!("skipped: {reason}"),
+            _ => continue,
+        };
+        out.push_str(&format!(
+            "online, frame set {} (frame {}): {line}\n",
+            step.set, step.frame
+        ));
+    }
+    if steps.is_empty() {
+        out.push_str(&format!(
+            "online: no update was due ({} frame sets, the window is {})\n",
+            calibration.frame_sets.len(),
+            options.window
+        ));
+    }
+    Ok(out)
 }
 
 /// The calibration with descriptors of type `D`, from ibc files.

@@ -222,6 +222,11 @@ pub struct CalibrateArgs {
     /// held and listed in the report.
     #[arg(long, value_enum, value_name = "SET", default_value_t = IntrinsicsArg::None)]
     pub refine_intrinsics: IntrinsicsArg,
+    /// Also replay the log through the online calibrator (focal lengths and extrinsics over a
+    /// sliding window of 50 frame sets, an update every 10 when the rig turned and moved) and
+    /// print its running estimate, with the errors over time against `--truth`.
+    #[arg(long)]
+    pub online: bool,
 }
 
 /// Options of `ibc selfcalib`.

@@ -12,6 +12,7 @@
 
 pub mod io;
 
+use ibc_camera_models::{Camera, CameraModel};
 use nalgebra::{Isometry3, Point3, Vector2};
 
 /// A 256-bit binary descriptor (ORB, BRIEF), compared by Hamming distance.
@@ -123,8 +124,11 @@ pub struct GroundTruth {
     /// The log's camera names, in its order (empty when the file does not say: older files).
     pub camera_names: Vec<String>,
     /// The true intrinsics of each camera during the log (CamOdoCal order, the camera file's
-    /// model); empty when the file does not say (older files).
+    /// model) at the first frame of the log; empty when the file does not say (older files).
     pub intrinsics: Vec<Vec<f64>>,
+    /// Per camera, the relative change of its focal lengths over the log, linear in the frame
+    /// index from 0 at the first frame (a lens warming up); empty when none drifts.
+    pub focal_drift: Vec<f64>,
 }
 
 /// Why a ground truth is not the truth of a rig log.
@@ -189,5 +193,20 @@ impl GroundTruth {
             });
         }
         Ok(())
+    }
+
+    /// The true camera `camera` at log frame `frame`: `like`'s model with the truth's
+    /// intrinsics, its focal lengths drifted as [`focal_drift`](Self::focal_drift) says;
+    /// `None` when the truth holds no intrinsics for it, or they do not fit `like`'s model.
+    pub fn camera_at(&self, camera: usize, frame: usize, like: &Camera) -> Option<Camera> {
+        let mut params = self.intrinsics.get(camera)?.clone();
+        let last = self.world_from_rig.len().saturating_sub(1).max(1) as f64;
+        let drift = self.focal_drift.get(camera).copied().unwrap_or(0.0) * frame as f64 / last;
+        for i in like.focal_length_indices() {
+            *params.get_mut(i)? *= 1.0 + drift;
+        }
+        let mut out = like.clone();
+        out.set_params(&params).ok()?;
+        Some(out)
     }
 }

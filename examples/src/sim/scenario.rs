@@ -80,6 +80,10 @@ pub struct CameraChange {
     pub focal_change: f64,
     /// Change of the principal point, pixels.
     pub principal_point_change_px: [f64; 2],
+    /// A slow drift of both focal lengths during the calibration drive, as a lens warming up:
+    /// relative, 0 at its first frame, reached linearly by its last (on top of
+    /// `focal_change`). In (-0.5, 0.5).
+    pub focal_drift: f64,
 }
 
 impl CameraChange {
@@ -91,6 +95,7 @@ impl CameraChange {
             rotation_deg: Vector3::zeros(),
             focal_change: 0.0,
             principal_point_change_px: [0.0; 2],
+            focal_drift: 0.0,
         }
     }
 
@@ -103,6 +108,7 @@ impl CameraChange {
             rotation_deg: Vector3::zeros(),
             focal_change,
             principal_point_change_px,
+            focal_drift: 0.0,
         }
     }
 
@@ -114,12 +120,15 @@ impl CameraChange {
             rotation_deg: axis.normalize() * degrees,
             focal_change: 0.0,
             principal_point_change_px: [0.0; 2],
+            focal_drift: 0.0,
         }
     }
 
-    /// Whether the lens changed.
+    /// Whether the lens changed or drifts.
     pub fn changes_intrinsics(&self) -> bool {
-        self.focal_change != 0.0 || self.principal_point_change_px != [0.0; 2]
+        self.focal_change != 0.0
+            || self.principal_point_change_px != [0.0; 2]
+            || self.focal_drift != 0.0
     }
 
     /// The changed intrinsics of `camera`.
@@ -431,6 +440,24 @@ impl Scenario {
         Ok(rig)
     }
 
+    /// The focal drift of each camera of `rig` over the calibration drive (see
+    /// [`CameraChange::focal_drift`]), empty when none drifts.
+    pub fn focal_drift(&self, rig: &Rig) -> Vec<f64> {
+        if self.changes.iter().all(|c| c.focal_drift == 0.0) {
+            return Vec::new();
+        }
+        rig.cameras
+            .iter()
+            .map(|camera| {
+                self.changes
+                    .iter()
+                    .filter(|c| c.camera == camera.name)
+                    .map(|c| c.focal_drift)
+                    .sum()
+            })
+            .collect()
+    }
+
     /// Checks every value: scale, frame counts, spacing and speed, noise and detection
     /// ranges, camera changes, the odometry against the motion.
     ///
@@ -471,11 +498,16 @@ impl Scenario {
                     c.camera
                 )));
             }
-            if !(c.focal_change > -0.5 && c.focal_change < 0.5) {
-                return Err(SimError::Invalid(format!(
-                    "the change of camera `{}` has focal_change = {}, not in (-0.5, 0.5)",
-                    c.camera, c.focal_change
-                )));
+            for (name, v) in [
+                ("focal_change", c.focal_change),
+                ("focal_drift", c.focal_drift),
+            ] {
+                if !(v > -0.5 && v < 0.5) {
+                    return Err(SimError::Invalid(format!(
+                        "the change of camera `{}` has {name} = {v}, not in (-0.5, 0.5)",
+                        c.camera
+                    )));
+                }
             }
         }
         if self.odometry == OdometryKind::Planar && self.trajectory.motion == Motion::Handheld {

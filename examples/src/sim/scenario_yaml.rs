@@ -26,6 +26,7 @@
 //!     rotation_deg: [0, 0, 0]        # rotation vector about the camera's own axes
 //!     focal_change: 0.0              # the lens: focal lengths times 1 + this (the camera
 //!     principal_point_change_px: [0, 0]  # file keeps the old intrinsics)
+//!     focal_drift: 0.0               # focal lengths drifting by this during the drive
 //! trajectory:
 //!   motion: drive              # drive (planar) | handheld (6-DoF)
 //!   frames: 500                # calibration frames at scale 1
@@ -449,6 +450,7 @@ impl Parser<'_> {
                     "rotation_deg",
                     "focal_change",
                     "principal_point_change_px",
+                    "focal_drift",
                 ],
                 &key,
             )?;
@@ -492,12 +494,17 @@ impl Parser<'_> {
                 .map(|n| self.vec2(n, &format!("{key}.principal_point_change_px")))
                 .transpose()?
                 .unwrap_or([0.0; 2]);
+            let focal_drift = get("focal_drift")
+                .map(|n| self.number(n, &format!("{key}.focal_drift")))
+                .transpose()?
+                .unwrap_or(0.0);
             out.push(CameraChange {
                 camera,
                 translation_m,
                 rotation_deg,
                 focal_change,
                 principal_point_change_px,
+                focal_drift,
             });
         }
         Ok(out)

@@ -5,7 +5,7 @@ use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
 use ibc_bundle_adjust::RigBaObservation;
-use ibc_camera_models::{CameraModel, Rig};
+use ibc_camera_models::{Camera, CameraModel, Rig};
 use nalgebra::{Isometry3, Point3, Vector3};
 use rand_distr::{Distribution, Normal};
 use rayon::prelude::*;
@@ -115,6 +115,23 @@ struct Rendered {
 }
 
 /// Renders every image of a drive: `[frame][camera]`.
+/// `camera` with its focal lengths times `1 + change` (a change the model refuses, which the
+/// scenario's validation rules out, leaves it as it is).
+fn with_focal_change(camera: &Camera, change: f64) -> Camera {
+    let mut out = camera.clone();
+    let mut params = out.params().to_vec();
+    for i in out.focal_length_indices() {
+        params[i] *= 1.0 + change;
+    }
+    if out.set_params(&params).is_err() {
+        return camera.clone();
+    }
+    out
+}
+
+/// Renders every frame of a drive. `focal_drift` (one per camera, or empty for none): the
+/// relative change of each camera's focal lengths over the drive, reached linearly from 0 at
+/// the first frame to its value at the last.
 fn render_drive(
     env: &Environment,
     rig: &SimRig,
@@ -122,7 +139,9 @@ fn render_drive(
     purpose: Purpose,
     seed: u64,
     settings: &Settings,
+    focal_drift: &[f64],
 ) -> Vec<Vec<Rendered>> {
+    let last = poses.world_from_rig.len().saturating_sub(1).max(1) as f64;
     let reach = rig
         .rig
         .cameras
@@ -146,8 +165,10 @@ fn render_drive(
                     .zip(&rig.max_incidence_rad)
                     .enumerate()
                     .map(|(c, (cam, max_incidence))| {
+                        let drift = focal_drift.get(c).copied().unwrap_or(0.0) * i as f64 / last;
+                        let drifted = (drift != 0.0).then(|| with_focal_change(&cam.camera, drift));
                         let view = View {
-                            camera: &cam.camera,
+                            camera: drifted.as_ref().unwrap_or(&cam.camera),
                             camera_from_world: (world_from_rig * cam.rig_from_camera).inverse(),
                             cos_max_incidence: max_incidence.cos(),
                         };
@@ -204,6 +225,7 @@ impl SimulatedWorld {
             Purpose::SurveyImage,
             seed,
             &settings,
+            &[],
         );
         let mut seen = vec![0u32; env.landmarks.len()];
         for image in survey_images.iter().flatten() {
@@ -245,7 +267,16 @@ impl SimulatedWorld {
             0.0,
             0.0,
         );
-        let log_images = render_drive(&env, &true_rig, &drive, Purpose::LogImage, seed, &settings);
+        let focal_drift = scenario.focal_drift(&true_rig.rig);
+        let log_images = render_drive(
+            &env,
+            &true_rig,
+            &drive,
+            Purpose::LogImage,
+            seed,
+            &settings,
+            &focal_drift,
+        );
         let odometry = odometry::simulate(
             &drive.world_from_rig,
             &true_rig.rig_from_odometry,
@@ -310,6 +341,7 @@ impl SimulatedWorld {
                 .iter()
                 .map(|c| c.camera.params().to_vec())
                 .collect(),
+            focal_drift,
         };
         Ok(Self {
             scenario: scenario.clone(),

@@ -79,3 +79,13 @@ pub fn change(
         a[camera].translation.vector - b[camera].translation.vector,
     )
 }
+
+/// The kind and camera of every warning of a calibration.
+pub fn flagged(calibration: &Calibration) -> Vec<(&'static str, String)> {
+    calibration
+        .quality
+        .warnings
+        .iter()
+        .map(|w| (w.kind(), w.camera().unwrap_or("").to_owned()))
+        .collect()
+}

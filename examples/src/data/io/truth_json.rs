@@ -52,6 +52,8 @@ struct JsonTruth {
     world_from_rig: Vec<JsonPose>,
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     intrinsics: Vec<Vec<f64>>,
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    focal_drift: Vec<f64>,
 }
 
 /// The ground truth as pretty-printed JSON.
@@ -70,6 +72,7 @@ pub fn truth_to_json(truth: &GroundTruth) -> Result<String, serde_json::Error> {
         rig_from_odometry: truth.rig_from_odometry.as_ref().map(JsonPose::from),
         world_from_rig: truth.world_from_rig.iter().map(JsonPose::from).collect(),
         intrinsics: truth.intrinsics.clone(),
+        focal_drift: truth.focal_drift.clone(),
     };
     if !truth.pixel_noise_px.is_finite()
         || truth.intrinsics.iter().flatten().any(|v| !v.is_finite())
@@ -124,7 +127,19 @@ pub fn truth_from_json(text: &str) -> Result<GroundTruth, serde_json::Error> {
             j.rig_from_camera.len()
         )));
     }
-    if j.intrinsics.iter().flatten().any(|v| !v.is_finite()) {
+    if !j.focal_drift.is_empty() && j.focal_drift.len() != j.rig_from_camera.len() {
+        return Err(Error::custom(format!(
+            "{} focal_drift for {} rig_from_camera",
+            j.focal_drift.len(),
+            j.rig_from_camera.len()
+        )));
+    }
+    if j.intrinsics
+        .iter()
+        .flatten()
+        .chain(&j.focal_drift)
+        .any(|v| !v.is_finite())
+    {
         return Err(Error::custom("intrinsics must be finite"));
     }
     let poses = |v: &[JsonPose], what: &str| -> Result<Vec<Isometry3<f64>>, serde_json::Error> {
@@ -146,5 +161,6 @@ pub fn truth_from_json(text: &str) -> Result<GroundTruth, serde_json::Error> {
         pixel_noise_px: j.pixel_noise_px,
         camera_names: j.camera_names,
         intrinsics: j.intrinsics,
+        focal_drift: j.focal_drift,
     })
 }
