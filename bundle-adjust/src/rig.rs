@@ -42,7 +42,7 @@ use crate::rig_ba_cost::{
     validate_held_intrinsics,
 };
 use crate::rig_bundle_adjustment::{
-    CameraBlock, EXTRINSIC_NAMES, ParameterObservability, analyse_camera_blocks,
+    EXTRINSIC_NAMES, ParameterObservability, analyse_camera_blocks, camera_blocks,
 };
 use crate::summary::Summary;
 use crate::{NonExhaustive, RobustLoss};
@@ -590,25 +590,9 @@ impl RigRefinement {
         let mut observability = Vec::new();
         let free_extrinsic = |c: usize| c != options.reference_camera;
         if options.covariance && intrinsics.iter().any(Option::is_some) {
-            let mut blocks = Vec::new();
-            for c in 0..nc {
-                if free_extrinsic(c) {
-                    blocks.push(CameraBlock {
-                        camera: c,
-                        id: extrinsics[c],
-                        intrinsics: None,
-                        names: &EXTRINSIC_NAMES,
-                    });
-                }
-                if let Some((id, free)) = &intrinsics[c] {
-                    blocks.push(CameraBlock {
-                        camera: c,
-                        id: *id,
-                        intrinsics: Some(free),
-                        names: &[],
-                    });
-                }
-            }
+            let blocks = camera_blocks(&extrinsics, &intrinsics, |c| {
+                free_extrinsic(c).then_some(&EXTRINSIC_NAMES[..])
+            });
             let (entries, covariances) =
                 analyse_camera_blocks(&problem, &blocks, &cameras, &options.solver)?;
             observability = entries;

@@ -80,8 +80,9 @@ use crate::program::{NONE, Program};
 use crate::reduced::{ReducedLayout, TargetKind};
 use crate::rig::{check_pose, check_rig_coverage};
 use crate::rig_ba_cost::{
-    Intrinsics, PointDistancePrior, RigBaReprojection, SpherePoseManifold, add_intrinsics_blocks,
-    free_intrinsics, full_intrinsic_covariance, refined_cameras, validate_held_intrinsics,
+    Intrinsics, IntrinsicsBlock, PointDistancePrior, RigBaReprojection, SpherePoseManifold,
+    add_intrinsics_blocks, free_intrinsics, full_intrinsic_covariance, refined_cameras,
+    validate_held_intrinsics,
 };
 use crate::schur::SchurComplement;
 use crate::summary::Summary;
@@ -846,30 +847,15 @@ impl RigBundleAdjustment {
         };
         if options.covariance {
             // The camera parameter blocks, in order: extrinsic then intrinsics per camera.
-            let mut blocks = Vec::new();
-            for c in 0..self.cameras.len() {
-                if !held_camera[c] {
-                    let names = if camera_sphere.is_some_and(|(sc, _)| sc == c) {
-                        &SPHERE_EXTRINSIC_NAMES[..]
-                    } else {
-                        &EXTRINSIC_NAMES[..]
-                    };
-                    blocks.push(CameraBlock {
-                        camera: c,
-                        id: extrinsics[c],
-                        intrinsics: None,
-                        names,
-                    });
+            let blocks = camera_blocks(&extrinsics, &intrinsics, |c| {
+                if held_camera[c] {
+                    None
+                } else if camera_sphere.is_some_and(|(sc, _)| sc == c) {
+                    Some(&SPHERE_EXTRINSIC_NAMES[..])
+                } else {
+                    Some(&EXTRINSIC_NAMES[..])
                 }
-                if let Some((id, free)) = &intrinsics[c] {
-                    blocks.push(CameraBlock {
-                        camera: c,
-                        id: *id,
-                        intrinsics: Some(free),
-                        names: &[],
-                    });
-                }
-            }
+            });
             let (observability, covariances) =
                 analyse_camera_blocks(&problem, &blocks, &result.cameras, &options.solver)?;
             result.observability = observability;
@@ -914,6 +900,35 @@ const SPHERE_EXTRINSIC_NAMES: [&str; 5] = ["baseline_a", "baseline_b", "phi_x", 
 /// What [`analyse_camera_blocks`] finds: every coordinate's figures, and each block's
 /// covariance (`None` when the information has a null direction).
 pub(crate) type CameraBlockAnalysis = (Vec<ParameterObservability>, Vec<Option<DMatrix<f64>>>);
+
+/// The camera parameter blocks of an analysis, camera by camera: its extrinsic (when
+/// `extrinsic(c)` names its coordinates; `None` for a held one), then its free intrinsics.
+pub(crate) fn camera_blocks<'a>(
+    extrinsics: &[ParameterBlockId],
+    intrinsics: &'a [IntrinsicsBlock],
+    extrinsic: impl Fn(usize) -> Option<&'static [&'static str]>,
+) -> Vec<CameraBlock<'a>> {
+    let mut blocks = Vec::new();
+    for (c, (&id, free)) in extrinsics.iter().zip(intrinsics).enumerate() {
+        if let Some(names) = extrinsic(c) {
+            blocks.push(CameraBlock {
+                camera: c,
+                id,
+                intrinsics: None,
+                names,
+            });
+        }
+        if let Some((id, free)) = free {
+            blocks.push(CameraBlock {
+                camera: c,
+                id: *id,
+                intrinsics: Some(free),
+                names: &[],
+            });
+        }
+    }
+    blocks
+}
 
 /// One camera parameter block of [`analyse_camera_blocks`].
 pub(crate) struct CameraBlock<'a> {

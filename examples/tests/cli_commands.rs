@@ -214,22 +214,17 @@ fn the_json_report_has_the_keys_the_issue_lists() {
     }
 }
 
-#[test]
-fn refine_intrinsics_corrects_a_stale_camera_file_and_writes_the_refined_ones() {
-    // Every lens changed since the map and the camera file were made (a scenario file's
-    // `changes`): the camera file's focal lengths are 1 % long, its principal points 3 px off.
-    let dir = tempfile::tempdir().unwrap();
+/// The garage at half size simulated by `ibc simulate` into `dir/world` from a scenario file
+/// whose `changes` give each of its cameras the lens change `change` (YAML keys of a camera
+/// change); returns the world's folder.
+fn changed_lenses_world(dir: &std::path::Path, change: &str) -> std::path::PathBuf {
     let mut yaml = String::from("version: 1\nbase: garage\nscale: 0.5\nchanges:\n");
     for name in ["front", "left", "rear", "right"] {
-        yaml.push_str(&format!(
-            "  - camera: {name}\n    focal_change: {}\n    principal_point_change_px: [-3, -3]\n",
-            1.0 / 1.01 - 1.0
-        ));
+        yaml.push_str(&format!("  - camera: {name}\n    {change}\n"));
     }
-    let scenario = dir.path().join("stale.yaml");
+    let scenario = dir.join("lenses.yaml");
     std::fs::write(&scenario, yaml).unwrap();
-    let world = dir.path().join("world");
-    let path = |name: &str| world.join(name).to_str().unwrap().to_owned();
+    let world = dir.join("world");
     let o = ibc(&[
         "simulate",
         "--quiet",
@@ -239,6 +234,20 @@ fn refine_intrinsics_corrects_a_stale_camera_file_and_writes_the_refined_ones() 
         world.to_str().unwrap(),
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
+    world
+}
+
+#[test]
+fn refine_intrinsics_corrects_a_stale_camera_file_and_writes_the_refined_ones() {
+    // Every lens changed since the map and the camera file were made (a scenario file's
+    // `changes`): the camera file's focal lengths are 1 % long, its principal points 3 px off.
+    let dir = tempfile::tempdir().unwrap();
+    let change = format!(
+        "focal_change: {}\n    principal_point_change_px: [-3, -3]",
+        1.0 / 1.01 - 1.0
+    );
+    let world = changed_lenses_world(dir.path(), &change);
+    let path = |name: &str| world.join(name).to_str().unwrap().to_owned();
     let calibrate = |out: &str, set: &str| {
         ibc(&[
             "calibrate",
@@ -305,23 +314,8 @@ fn refine_intrinsics_corrects_a_stale_camera_file_and_writes_the_refined_ones() 
 fn online_replays_the_log_and_follows_a_drifting_focal_length() {
     // Every focal length drifts +0.5 % over the drive (a scenario file's `focal_drift`).
     let dir = tempfile::tempdir().unwrap();
-    let mut yaml = String::from("version: 1\nbase: garage\nscale: 0.5\nchanges:\n");
-    for name in ["front", "left", "rear", "right"] {
-        yaml.push_str(&format!("  - camera: {name}\n    focal_drift: 0.005\n"));
-    }
-    let scenario = dir.path().join("drift.yaml");
-    std::fs::write(&scenario, yaml).unwrap();
-    let world = dir.path().join("world");
+    let world = changed_lenses_world(dir.path(), "focal_drift: 0.005");
     let path = |name: &str| world.join(name).to_str().unwrap().to_owned();
-    let o = ibc(&[
-        "simulate",
-        "--quiet",
-        "--scenario",
-        scenario.to_str().unwrap(),
-        "--out",
-        world.to_str().unwrap(),
-    ]);
-    assert!(o.status.success(), "{}", stderr(&o));
     let o = ibc(&[
         "calibrate",
         "--quiet",
