@@ -34,7 +34,9 @@ use nalgebra::{DMatrix, Isometry3, Matrix6, Vector2, Vector3};
 use crate::NonExhaustive;
 use crate::error::{BundleAdjustError, Result};
 use crate::options::{LinearSolverType, SolverOptions};
-use crate::rig::{IntrinsicsSelection, RigObservation, RigRefinement, RigRefinementOptions};
+use crate::rig::{
+    IntrinsicsSelection, RigObservation, RigRefinement, RigRefinementOptions, check_pose,
+};
 use crate::summary::Summary;
 
 /// One observation of a frame set: camera `camera` saw the map point `world_point` at `pixel`.
@@ -275,12 +277,7 @@ impl OnlineCalibrator {
     /// A refinement that fails is not an error but [`SkipReason::Refinement`].
     pub fn push(&mut self, frame_set: OnlineFrameSet) -> Result<OnlineEvent> {
         let nc = self.cameras.len();
-        if !se3_finite(&frame_set.world_from_rig) {
-            return Err(BundleAdjustError::NonFiniteInput {
-                what: "world_from_rig",
-                index: self.pushed,
-            });
-        }
+        check_pose(self.pushed, &frame_set.world_from_rig, "world_from_rig")?;
         for (i, o) in frame_set.observations.iter().enumerate() {
             if o.camera >= nc {
                 return Err(BundleAdjustError::IndexOutOfRange {
@@ -422,9 +419,4 @@ impl OnlineCalibrator {
             summary: result.summary,
         })
     }
-}
-
-fn se3_finite(pose: &Isometry3<f64>) -> bool {
-    pose.translation.vector.iter().all(|v| v.is_finite())
-        && pose.rotation.coords.iter().all(|v| v.is_finite())
 }

@@ -214,6 +214,29 @@ fn the_json_report_has_the_keys_the_issue_lists() {
     }
 }
 
+/// `ibc calibrate --quiet` on the simulated world in `world` (its map, log, camchain and
+/// truth), the outputs in `world/out`, with the `extra` arguments.
+fn calibrate_world(world: &std::path::Path, out: &str, extra: &[&str]) -> std::process::Output {
+    let path = |name: &str| world.join(name).to_str().unwrap().to_owned();
+    let mut args = vec![
+        "calibrate".to_owned(),
+        "--quiet".to_owned(),
+        "--map".to_owned(),
+        path("map.ibcmap"),
+        "--log".to_owned(),
+        path("log.ibclog"),
+        "--cameras".to_owned(),
+        path("camchain.yaml"),
+        "--truth".to_owned(),
+        path("truth.json"),
+        "--out".to_owned(),
+        path(out),
+    ];
+    args.extend(extra.iter().map(|a| (*a).to_owned()));
+    let args: Vec<&str> = args.iter().map(String::as_str).collect();
+    ibc(&args)
+}
+
 /// The garage at half size simulated by `ibc simulate` into `dir/world` from a scenario file
 /// whose `changes` give each of its cameras the lens change `change` (YAML keys of a camera
 /// change); returns the world's folder.
@@ -247,26 +270,10 @@ fn refine_intrinsics_corrects_a_stale_camera_file_and_writes_the_refined_ones() 
         1.0 / 1.01 - 1.0
     );
     let world = changed_lenses_world(dir.path(), &change);
-    let path = |name: &str| world.join(name).to_str().unwrap().to_owned();
     let calibrate = |out: &str, set: &str| {
-        ibc(&[
-            "calibrate",
-            "--quiet",
-            "--json",
-            "--map",
-            &path("map.ibcmap"),
-            "--log",
-            &path("log.ibclog"),
-            "--cameras",
-            &path("camchain.yaml"),
-            "--truth",
-            &path("truth.json"),
-            "--out",
-            &path(out),
-            "--refine-intrinsics",
-            set,
-        ])
+        calibrate_world(&world, out, &["--json", "--refine-intrinsics", set])
     };
+    let truth = world.join("truth.json");
     // Held: the gates flag the calibration (exit 3).
     let o = calibrate("held", "none");
     assert_eq!(o.status.code(), Some(3), "{}", stderr(&o));
@@ -276,7 +283,7 @@ fn refine_intrinsics_corrects_a_stale_camera_file_and_writes_the_refined_ones() 
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
     let report: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     let truth: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(path("truth.json")).unwrap()).unwrap();
+        serde_json::from_str(&std::fs::read_to_string(truth).unwrap()).unwrap();
     let written =
         ibc_camera_models::Rig::read_kalibr(world.join("refined").join(output_names::CAMCHAIN))
             .unwrap();
@@ -315,22 +322,7 @@ fn online_replays_the_log_and_follows_a_drifting_focal_length() {
     // Every focal length drifts +0.5 % over the drive (a scenario file's `focal_drift`).
     let dir = tempfile::tempdir().unwrap();
     let world = changed_lenses_world(dir.path(), "focal_drift: 0.005");
-    let path = |name: &str| world.join(name).to_str().unwrap().to_owned();
-    let o = ibc(&[
-        "calibrate",
-        "--quiet",
-        "--map",
-        &path("map.ibcmap"),
-        "--log",
-        &path("log.ibclog"),
-        "--cameras",
-        &path("camchain.yaml"),
-        "--truth",
-        &path("truth.json"),
-        "--out",
-        &path("out"),
-        "--online",
-    ]);
+    let o = calibrate_world(&world, "out", &["--online"]);
     let out = stdout(&o);
     let (mut updates, mut skips, mut checks, mut within) = (0, 0, 0, 0);
     let mut worst = 0.0f64;

@@ -3,9 +3,10 @@
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
+use ibc_bundle_adjust::nalgebra::DMatrix;
 use ibc_bundle_adjust::{OnlineEvent, OnlineOptions};
-use ibc_camera_models::CameraModel;
 use ibc_camera_models::Rig;
+use ibc_camera_models::{Camera, CameraModel};
 use ibc_pipeline::calib::{Calibration, Status, calibrate_with, replay_online};
 use ibc_pipeline::colmap::{
     ColmapDatabase, ColmapDescriptor, ColmapLogOptions, read_colmap_log, read_colmap_map,
@@ -122,22 +123,7 @@ fn online_lines<D: Descriptor>(
                         let name = calibration.camera_names.get(c).map_or("?", String::as_str);
                         let cov = update.intrinsic_covariance.get(c).and_then(Option::as_ref);
                         let truth = truth.and_then(|t| t.camera_at(c, frame, camera));
-                        let focal: Vec<String> = camera
-                            .focal_length_indices()
-                            .iter()
-                            .map(|&i| {
-                                let value = camera.params()[i];
-                                let std = cov.map_or(f64::NAN, |m| m[(i, i)].max(0.0).sqrt());
-                                let error = truth.as_ref().map_or(String::new(), |t| {
-                                    format!(", error {:+.3}", value - t.params()[i])
-                                });
-                                format!(
-                                    "{} {value:.3} (std {std:.3}{error})",
-                                    camera.param_names()[i]
-                                )
-                            })
-                            .collect();
-                        format!("{name} {}", focal.join(" "))
+                        focal_lengths(name, camera, cov, truth.as_ref())
                     })
                     .collect();
                 format!("updated: {}", cameras.join("; "))
@@ -158,6 +144,33 @@ fn online_lines<D: Descriptor>(
         ));
     }
     Ok(out)
+}
+
+/// `name mu 396.606 (std 0.016, error +0.048) mv ...`: a camera's focal lengths with their
+/// standard deviations (from `cov`, the covariance of its intrinsics) and, with `truth`, their
+/// errors.
+fn focal_lengths(
+    name: &str,
+    camera: &Camera,
+    cov: Option<&DMatrix<f64>>,
+    truth: Option<&Camera>,
+) -> String {
+    let focal: Vec<String> = camera
+        .focal_length_indices()
+        .iter()
+        .map(|&i| {
+            let value = camera.params()[i];
+            let std = cov.map_or(f64::NAN, |m| m[(i, i)].max(0.0).sqrt());
+            let error = truth.map_or(String::new(), |t| {
+                format!(", error {:+.3}", value - t.params()[i])
+            });
+            format!(
+                "{} {value:.3} (std {std:.3}{error})",
+                camera.param_names()[i]
+            )
+        })
+        .collect();
+    format!("{name} {}", focal.join(" "))
 }
 
 /// The calibration with descriptors of type `D`, from ibc files.
