@@ -7,6 +7,7 @@ pub mod intrinsics;
 pub mod report;
 pub mod sfm;
 pub mod sim;
+pub mod target;
 
 /// The `nalgebra` the crate's API is written with (poses, points, pixels).
 pub use nalgebra;

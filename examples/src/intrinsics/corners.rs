@@ -118,8 +118,12 @@ impl CornerSet {
         s.push_str(&format!("  \"image_width\": {},\n", self.width));
         s.push_str(&format!("  \"image_height\": {},\n", self.height));
         if let Some(b) = &self.board {
+            let spacing = b
+                .spacing
+                .map(|g| format!(", \"spacing\": {}", json_number(g)))
+                .unwrap_or_default();
             s.push_str(&format!(
-                "  \"board\": {{\"rows\": {}, \"cols\": {}, \"square\": {}}},\n",
+                "  \"board\": {{\"rows\": {}, \"cols\": {}, \"square\": {}{spacing}}},\n",
                 b.rows,
                 b.cols,
                 json_number(b.square)

@@ -1,5 +1,6 @@
 //! The planar calibration target: a chessboard (or any grid of corners) of `rows x cols` inner
-//! corners spaced `square` metres apart.
+//! corners spaced `square` metres apart, or the corners of a Kalibr AprilGrid (pairs of corners
+//! a tag's size apart, the pairs a spacing apart; see [`PlanarTarget::spacing`]).
 
 use nalgebra::Point3;
 use serde::{Deserialize, Serialize};
@@ -19,8 +20,15 @@ pub struct PlanarTarget {
     pub rows: u32,
     /// Corners per row (at least 2).
     pub cols: u32,
-    /// Distance between neighbouring corners, metres (finite, positive).
+    /// Distance between neighbouring corners, metres (finite, positive). For an AprilGrid, the
+    /// tag size (the side of a tag's black square).
     pub square: f64,
+    /// For an AprilGrid: the gap between neighbouring tags, metres (finite, positive); the
+    /// corners then come in pairs, the two sides of one tag `square` apart, and neighbouring
+    /// pairs `spacing` apart (Kalibr's `tagSize * tagSpacing`). `None` (a chessboard): every
+    /// step is `square`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub spacing: Option<f64>,
 }
 
 impl PlanarTarget {
@@ -30,7 +38,34 @@ impl PlanarTarget {
     /// [`IntrinsicsError::InvalidTarget`] for fewer than 2 rows or columns, or a square size
     /// that is not finite and positive.
     pub fn new(rows: u32, cols: u32, square: f64) -> Result<Self, IntrinsicsError> {
-        let target = Self { rows, cols, square };
+        let target = Self {
+            rows,
+            cols,
+            square,
+            spacing: None,
+        };
+        target.validate()?;
+        Ok(target)
+    }
+
+    /// A Kalibr AprilGrid's corners, `2 * tag_rows x 2 * tag_cols` of them: tags of side
+    /// `tag_size` metres, `spacing` metres apart.
+    ///
+    /// # Errors
+    /// [`IntrinsicsError::InvalidTarget`] for fewer than one tag row or column, or sizes that
+    /// are not finite and positive.
+    pub fn april_grid(
+        tag_rows: u32,
+        tag_cols: u32,
+        tag_size: f64,
+        spacing: f64,
+    ) -> Result<Self, IntrinsicsError> {
+        let target = Self {
+            rows: tag_rows.saturating_mul(2),
+            cols: tag_cols.saturating_mul(2),
+            square: tag_size,
+            spacing: Some(spacing),
+        };
         target.validate()?;
         Ok(target)
     }
@@ -51,6 +86,20 @@ impl PlanarTarget {
                 "the square size must be finite and positive (metres), got {}",
                 self.square
             )));
+        }
+        if let Some(spacing) = self.spacing {
+            if !(spacing.is_finite() && spacing > 0.0) {
+                return Err(IntrinsicsError::InvalidTarget(format!(
+                    "the tag spacing must be finite and positive (metres), got {spacing}"
+                )));
+            }
+            if self.rows % 2 == 1 || self.cols % 2 == 1 {
+                return Err(IntrinsicsError::InvalidTarget(format!(
+                    "an AprilGrid has an even number of corner rows and columns (two per tag), \
+                     got {} x {}",
+                    self.rows, self.cols
+                )));
+            }
         }
         Ok(())
     }
@@ -82,29 +131,37 @@ impl PlanarTarget {
         row < self.rows && col < self.cols
     }
 
-    /// The board-frame position of corner `(row, col)`: `(col * square, row * square, 0)`.
+    /// The distance of the `index`-th corner line from the first, metres: `index * square`
+    /// on a chessboard; on an AprilGrid `ceil(index / 2) * square + floor(index / 2) * spacing`.
+    pub fn coordinate(&self, index: u32) -> f64 {
+        match self.spacing {
+            None => f64::from(index) * self.square,
+            Some(spacing) => {
+                f64::from(index.div_ceil(2)) * self.square + f64::from(index / 2) * spacing
+            }
+        }
+    }
+
+    /// The board-frame position of corner `(row, col)`: `(x(col), y(row), 0)` with
+    /// [`coordinate`](Self::coordinate), `(col * square, row * square, 0)` on a chessboard.
     /// Indices beyond the board give points beyond it (check with [`contains`](Self::contains)).
     pub fn point(&self, row: u32, col: u32) -> Point3<f64> {
-        Point3::new(
-            f64::from(col) * self.square,
-            f64::from(row) * self.square,
-            0.0,
-        )
+        Point3::new(self.coordinate(col), self.coordinate(row), 0.0)
     }
 
     /// The centre of the board in the board frame.
     pub fn center(&self) -> Point3<f64> {
         Point3::new(
-            0.5 * f64::from(self.cols - 1) * self.square,
-            0.5 * f64::from(self.rows - 1) * self.square,
+            0.5 * self.coordinate(self.cols - 1),
+            0.5 * self.coordinate(self.rows - 1),
             0.0,
         )
     }
 
     /// The board's diagonal from the first to the last corner, metres.
     pub fn diagonal(&self) -> f64 {
-        let w = f64::from(self.cols - 1) * self.square;
-        let h = f64::from(self.rows - 1) * self.square;
+        let w = self.coordinate(self.cols - 1);
+        let h = self.coordinate(self.rows - 1);
         w.hypot(h)
     }
 }
@@ -123,6 +180,19 @@ mod tests {
     }
 
     #[test]
+    fn april_grid_corners_pair_up() {
+        // Kalibr's default grid: 6 x 6 tags of 88 mm, 0.3 of a tag apart.
+        let t = PlanarTarget::april_grid(6, 6, 0.088, 0.0264).unwrap();
+        assert_eq!((t.rows, t.cols), (12, 12));
+        let xs: Vec<f64> = (0..4).map(|c| t.point(0, c).x).collect();
+        let expected = [0.0, 0.088, 0.1144, 0.2024];
+        for (x, e) in xs.iter().zip(expected) {
+            assert!((x - e).abs() < 1e-12, "{xs:?}");
+        }
+        assert!((t.point(11, 11).y - (6.0 * 0.088 + 5.0 * 0.0264)).abs() < 1e-12);
+    }
+
+    #[test]
     fn refuses_bad_boards() {
         for (text, square) in [("6", 0.04), ("6x", 0.04), ("ax9", 0.04), ("1x9", 0.04)] {
             assert!(matches!(
@@ -131,6 +201,7 @@ mod tests {
             ));
         }
         assert!(PlanarTarget::new(6, 9, 0.0).is_err());
+        assert!(PlanarTarget::april_grid(6, 6, 0.088, 0.0).is_err());
         assert!(PlanarTarget::new(6, 9, f64::NAN).is_err());
     }
 }

