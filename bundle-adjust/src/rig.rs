@@ -169,6 +169,8 @@ pub struct RigRefinementResult {
     pub rig_from_camera: Vec<Isometry3<f64>>,
     /// Refined rig poses.
     pub world_from_rig: Vec<Isometry3<f64>>,
+    /// Refined target poses ([`RigRefinement::refine_with_targets`]; empty otherwise).
+    pub world_from_target: Vec<Isometry3<f64>>,
     /// The cameras with their refined intrinsics (the start ones where held).
     pub cameras: Vec<Camera>,
     /// Covariance of each extrinsic in its right tangent `[ρ, φ]` (metres, radians) for unit
@@ -237,21 +239,124 @@ pub struct RigProblem {
     pub rig_from_camera: Vec<ParameterBlockId>,
     /// Per camera, the block of its free intrinsics and their indices (CamOdoCal order).
     pub intrinsics: Vec<Option<(ParameterBlockId, Vec<usize>)>>,
+    /// The SE(3) block of each free target (empty without targets).
+    pub world_from_target: Vec<ParameterBlockId>,
     /// Indices of the observations left out (see
     /// [`RigRefinementResult::excluded_observations`]).
     pub excluded_observations: Vec<usize>,
 }
 
+/// Free targets of [`RigRefinement::refine_with_targets`]: their start poses and, per
+/// observation, the target its point is on (`None`: a world point).
+#[derive(Default)]
+struct Targets<'a> {
+    poses: &'a [Isometry3<f64>],
+    of_observation: &'a [Option<usize>],
+}
+
+impl Targets<'_> {
+    /// The target of observation `i`, if any.
+    fn of(&self, i: usize) -> Option<usize> {
+        self.of_observation.get(i).copied().flatten()
+    }
+
+    fn validate(&self, observations: usize) -> Result<()> {
+        if self.poses.is_empty() && self.of_observation.is_empty() {
+            return Ok(());
+        }
+        if self.of_observation.len() != observations {
+            return Err(BundleAdjustError::LengthMismatch {
+                what: "observation_targets",
+                expected: observations,
+                got: self.of_observation.len(),
+            });
+        }
+        for (i, p) in self.poses.iter().enumerate() {
+            check_pose(i, p, "world_from_target")?;
+        }
+        for (i, t) in self.of_observation.iter().enumerate() {
+            if let Some(t) = *t
+                && t >= self.poses.len()
+            {
+                return Err(BundleAdjustError::IndexOutOfRange {
+                    what: "observation",
+                    position: i,
+                    target: "target",
+                    index: t,
+                    count: self.poses.len(),
+                });
+            }
+        }
+        Ok(())
+    }
+
+    /// The world point of observation `i` at the target poses `poses`.
+    fn world_point(
+        &self,
+        i: usize,
+        point: &Vector3<f64>,
+        poses: &[Isometry3<f64>],
+    ) -> Vector3<f64> {
+        match self.of(i).and_then(|t| poses.get(t)) {
+            Some(pose) => pose.transform_point(&(*point).into()).coords,
+            None => *point,
+        }
+    }
+}
+
 /// The reprojection residual of one rig observation; arguments
-/// `[world_from_rig (7, SE(3)), rig_from_camera (7, SE(3))]` and, with free intrinsics,
-/// `[.., intrinsics (free count)]`.
+/// `[world_from_rig (7, SE(3)), rig_from_camera (7, SE(3))]`, then with free intrinsics
+/// `intrinsics (free count)`, then for a point on a free target `world_from_target (7, SE(3))`.
 struct RigReprojection {
     intrinsics: Intrinsics,
-    /// The argument sizes: `[7, 7]` or `[7, 7, free intrinsics]`.
-    sizes: [usize; 3],
+    /// The argument sizes, in order.
+    sizes: [usize; 4],
     n_args: usize,
+    /// Whether the last argument is the pose of the target the point is on.
+    on_target: bool,
+    /// The point: in the world frame, or in its target's frame when `on_target`.
     world_point: Vector3<f64>,
     pixel: Vector2<f64>,
+}
+
+impl RigReprojection {
+    fn new(
+        intrinsics: Intrinsics,
+        n_free: usize,
+        on_target: bool,
+        world_point: Vector3<f64>,
+        pixel: Vector2<f64>,
+    ) -> Self {
+        let mut sizes = [7, 7, 0, 0];
+        let mut n_args = 2;
+        if n_free > 0 {
+            sizes[n_args] = n_free;
+            n_args += 1;
+        }
+        if on_target {
+            sizes[n_args] = 7;
+            n_args += 1;
+        }
+        Self {
+            intrinsics,
+            sizes,
+            n_args,
+            on_target,
+            world_point,
+            pixel,
+        }
+    }
+
+    /// The tangent sizes of the arguments (6 for a pose).
+    fn tangent_sizes(&self) -> [usize; 4] {
+        let mut t = self.sizes;
+        t[0] = 6;
+        t[1] = 6;
+        if self.on_target {
+            t[self.n_args - 1] = 6;
+        }
+        t
+    }
 }
 
 impl CostFunction for RigReprojection {
@@ -271,13 +376,20 @@ impl CostFunction for RigReprojection {
     ) -> bool {
         let world_from_rig = se3_from_unit_params(parameters[0]);
         let rig_from_camera = se3_from_unit_params(parameters[1]);
-        let p_rig = world_from_rig
-            .inverse_transform_point(&self.world_point.into())
-            .coords;
+        let has_free = self.n_args - usize::from(self.on_target) > 2;
+        let target_arg = self.n_args - 1;
+        let world_from_target = self
+            .on_target
+            .then(|| se3_from_unit_params(parameters[target_arg]));
+        let p_world = match &world_from_target {
+            Some(t) => t.transform_point(&self.world_point.into()),
+            None => self.world_point.into(),
+        };
+        let p_rig = world_from_rig.inverse_transform_point(&p_world).coords;
         let p_cam = rig_from_camera
             .inverse_transform_point(&p_rig.into())
             .coords;
-        let free = parameters.get(2).copied();
+        let free = if has_free { Some(parameters[2]) } else { None };
         let Some(jac) = jacobians else {
             let Some(pixel) = self.intrinsics.project(&p_cam, free) else {
                 return false;
@@ -298,16 +410,32 @@ impl CostFunction for RigReprojection {
             .to_rotation_matrix()
             .into_inner()
             .transpose();
+        let d_pixel_d_rig = d_pixel * camera_from_rig;
         if jac.wants(0) {
-            jac.set(
-                0,
-                &world_from_rig_jacobian(&(d_pixel * camera_from_rig), &p_rig),
-            );
+            jac.set(0, &world_from_rig_jacobian(&d_pixel_d_rig, &p_rig));
         }
         if jac.wants(1) {
             jac.set(1, &rig_from_camera_jacobian(&d_pixel, &p_cam));
         }
-        self.intrinsics.set_jacobian(jac, 2, d_params.as_ref());
+        if has_free {
+            self.intrinsics.set_jacobian(jac, 2, d_params.as_ref());
+        }
+        if let Some(t) = world_from_target
+            && jac.wants(target_arg)
+        {
+            // ∂(T Exp(δ) X)/∂δ = R [I, −[X]×], then into the rig and camera frames.
+            let rig_from_world: Matrix3<f64> = world_from_rig
+                .rotation
+                .to_rotation_matrix()
+                .into_inner()
+                .transpose();
+            let a = d_pixel_d_rig * rig_from_world * t.rotation.to_rotation_matrix().into_inner();
+            let mut j = SMatrix::<f64, 2, 6>::zeros();
+            j.fixed_view_mut::<2, 3>(0, 0).copy_from(&a);
+            j.fixed_view_mut::<2, 3>(0, 3)
+                .copy_from(&(-a * skew(&self.world_point)));
+            jac.set(target_arg, &j);
+        }
         true
     }
 }
@@ -434,7 +562,19 @@ impl RigRefinement {
     /// [`BundleAdjustError::FrameWithoutObservations`] naming a camera or frame set without a
     /// usable observation.
     pub fn to_problem(&self, options: &RigRefinementOptions) -> Result<RigProblem> {
+        self.to_problem_with_targets(&Targets::default(), options)
+    }
+
+    /// [`to_problem`](Self::to_problem) with free targets (see
+    /// [`refine_with_targets`](Self::refine_with_targets)).
+    fn to_problem_with_targets(
+        &self,
+        targets: &Targets<'_>,
+        options: &RigRefinementOptions,
+    ) -> Result<RigProblem> {
         self.validate(options)?;
+        targets.validate(self.observations.len())?;
+        let target_params: Vec<[f64; 7]> = targets.poses.iter().map(se3_to_params).collect();
         let fixed: Arc<[Camera]> = self.cameras.clone().into();
         let frame_params: Vec<[f64; 7]> = self.world_from_rig.iter().map(se3_to_params).collect();
         let camera_params: Vec<[f64; 7]> = self.rig_from_camera.iter().map(se3_to_params).collect();
@@ -454,23 +594,20 @@ impl RigRefinement {
         let mut used_by_frame = vec![0usize; self.world_from_rig.len()];
         for (i, o) in self.observations.iter().enumerate() {
             let (intrinsics, n_free) = Intrinsics::of(&fixed, o.camera, free[o.camera].as_ref());
-            let n_args = if n_free > 0 { 3 } else { 2 };
-            let cost = RigReprojection {
-                intrinsics,
-                sizes: [7, 7, n_free],
-                n_args,
-                world_point: o.world_point,
-                pixel: o.pixel,
-            };
-            let params: [&[f64]; 3] = [
-                &frame_params[o.frame],
-                &camera_params[o.camera],
-                free[o.camera].as_ref().map_or(&[][..], |f| &f.values),
-            ];
-            if probe.evaluates(&cost, &params[..n_args], &[6, 6, n_free][..n_args]) {
+            let target = targets.of(i);
+            let cost =
+                RigReprojection::new(intrinsics, n_free, target.is_some(), o.world_point, o.pixel);
+            let mut params: Vec<&[f64]> = vec![&frame_params[o.frame], &camera_params[o.camera]];
+            if let Some(f) = free[o.camera].as_ref() {
+                params.push(&f.values);
+            }
+            if let Some(t) = target {
+                params.push(&target_params[t]);
+            }
+            if probe.evaluates(&cost, &params, &cost.tangent_sizes()[..cost.n_args]) {
                 used_by_camera[o.camera] += 1;
                 used_by_frame[o.frame] += 1;
-                costs.push((o, cost));
+                costs.push((i, (o, cost)));
             } else {
                 excluded_observations.push(i);
             }
@@ -492,24 +629,30 @@ impl RigRefinement {
             .map(|p| problem.add_manifold_block(p, Se3Manifold))
             .collect::<Result<Vec<_>>>()?;
         let intrinsics = add_intrinsics_blocks(&mut problem, &free)?;
+        let world_from_target = target_params
+            .iter()
+            .map(|p| problem.add_manifold_block(p, Se3Manifold))
+            .collect::<Result<Vec<_>>>()?;
         for &f in &world_from_rig {
             problem.set_eliminated(f, true)?;
         }
         problem.set_constant(rig_from_camera[options.reference_camera], true)?;
-        for (o, cost) in costs {
-            let (frame, camera) = (world_from_rig[o.frame], rig_from_camera[o.camera]);
-            let blocks = match &intrinsics[o.camera] {
-                Some((id, _)) => [frame, camera, *id],
-                None => [frame, camera, camera],
-            };
-            let n = if intrinsics[o.camera].is_some() { 3 } else { 2 };
-            problem.add_residual_block(cost, options.loss, &blocks[..n])?;
+        for (i, (o, cost)) in costs {
+            let mut blocks = vec![world_from_rig[o.frame], rig_from_camera[o.camera]];
+            if let Some((id, _)) = &intrinsics[o.camera] {
+                blocks.push(*id);
+            }
+            if let Some(t) = targets.of(i) {
+                blocks.push(world_from_target[t]);
+            }
+            problem.add_residual_block(cost, options.loss, &blocks)?;
         }
         Ok(RigProblem {
             problem,
             world_from_rig,
             rig_from_camera,
             intrinsics,
+            world_from_target,
             excluded_observations,
         })
     }
@@ -522,7 +665,13 @@ impl RigRefinement {
         rig_from_camera: &[Isometry3<f64>],
         world_from_rig: &[Isometry3<f64>],
     ) -> f64 {
-        self.rms_over(&[], &self.cameras, rig_from_camera, world_from_rig)
+        self.rms_over(
+            &[],
+            &self.cameras,
+            rig_from_camera,
+            world_from_rig,
+            (&Targets::default(), &[]),
+        )
     }
 
     /// [`RigRefinement::rms_error`] with the given cameras, without the observations in
@@ -533,6 +682,7 @@ impl RigRefinement {
         cameras: &[Camera],
         rig_from_camera: &[Isometry3<f64>],
         world_from_rig: &[Isometry3<f64>],
+        (targets, target_poses): (&Targets<'_>, &[Isometry3<f64>]),
     ) -> f64 {
         let mut sum = 0.0;
         let mut n = 0usize;
@@ -547,9 +697,8 @@ impl RigRefinement {
             ) else {
                 continue;
             };
-            let p = (w * c)
-                .inverse_transform_point(&o.world_point.into())
-                .coords;
+            let world_point = targets.world_point(i, &o.world_point, target_poses);
+            let p = (w * c).inverse_transform_point(&world_point.into()).coords;
             if let Ok(px) = cam.project(&p) {
                 sum += (px - o.pixel).norm_squared();
                 n += 1;
@@ -568,13 +717,50 @@ impl RigRefinement {
     /// intrinsics; with free intrinsics and [`RigRefinementOptions::covariance`],
     /// [`BundleAdjustError::SingularInformation`] when the rig poses are not determined.
     pub fn refine(&self, options: &RigRefinementOptions) -> Result<RigRefinementResult> {
+        self.refine_over(&Targets::default(), options)
+    }
+
+    /// [`refine`](Self::refine) where some points lie on targets whose poses are unknown too:
+    /// `observation_targets[i]` is `Some(k)` when observation `i`'s `world_point` is a point of
+    /// target `k` in that target's frame (a calibration board standing still while the rig
+    /// moves), `None` for a point in the world frame. Each target's `world_from_target`
+    /// starts at `world_from_target[k]` and is refined with the rest; the result holds the
+    /// refined poses in [`RigRefinementResult::world_from_target`]. Observations in the world
+    /// frame (or a held reference) must fix the world: targets alone leave it free.
+    ///
+    /// # Errors
+    /// As [`refine`](Self::refine), and [`BundleAdjustError::LengthMismatch`] when
+    /// `observation_targets` does not have one entry per observation,
+    /// [`BundleAdjustError::IndexOutOfRange`] for a target that does not exist,
+    /// [`BundleAdjustError::NonFiniteInput`] for a non-finite target pose.
+    pub fn refine_with_targets(
+        &self,
+        world_from_target: &[Isometry3<f64>],
+        observation_targets: &[Option<usize>],
+        options: &RigRefinementOptions,
+    ) -> Result<RigRefinementResult> {
+        self.refine_over(
+            &Targets {
+                poses: world_from_target,
+                of_observation: observation_targets,
+            },
+            options,
+        )
+    }
+
+    fn refine_over(
+        &self,
+        targets: &Targets<'_>,
+        options: &RigRefinementOptions,
+    ) -> Result<RigRefinementResult> {
         let RigProblem {
             mut problem,
             world_from_rig: frames,
             rig_from_camera: extrinsics,
             intrinsics,
+            world_from_target: target_blocks,
             excluded_observations,
-        } = self.to_problem(options)?;
+        } = self.to_problem_with_targets(targets, options)?;
         let summary = problem.solve(&options.solver)?;
         let read = |ids: &[ParameterBlockId]| -> Result<Vec<Isometry3<f64>>> {
             ids.iter()
@@ -583,6 +769,7 @@ impl RigRefinement {
         };
         let rig_from_camera = read(&extrinsics)?;
         let world_from_rig = read(&frames)?;
+        let world_from_target = read(&target_blocks)?;
         let cameras = refined_cameras(&self.cameras, &intrinsics, &problem)?;
         let nc = extrinsics.len();
         let mut extrinsic_covariance = vec![None; nc];
@@ -634,15 +821,18 @@ impl RigRefinement {
                 &self.cameras,
                 &self.rig_from_camera,
                 &self.world_from_rig,
+                (targets, targets.poses),
             ),
             final_rms: self.rms_over(
                 &excluded_observations,
                 &cameras,
                 &rig_from_camera,
                 &world_from_rig,
+                (targets, &world_from_target),
             ),
             rig_from_camera,
             world_from_rig,
+            world_from_target,
             cameras,
             extrinsic_covariance,
             intrinsic_covariance,

@@ -12,8 +12,8 @@ use super::board_pose::{ImageCorrespondences, all_correspondences};
 use super::corners::{CornerSet, ImageCorners};
 use super::error::IntrinsicsError;
 use super::kb_init::{FocalHypothesis, KbInitOptions, kannala_brandt_initialization};
-use super::pinhole_init::pinhole_initialization;
-use super::robust::robust_refine;
+use super::pinhole_init::{centred_initialization, pinhole_initialization};
+use super::robust::{RobustRefined, robust_refine};
 use super::target::PlanarTarget;
 use super::zhang::ZhangIntrinsics;
 
@@ -149,7 +149,19 @@ pub enum Initialization {
     },
     /// Pinhole-radtan: Zhang's closed form.
     Zhang(ZhangIntrinsics),
+    /// Pinhole-radtan: the fallback when Zhang's start refined to a poor fit or had no
+    /// solution: the principal point at the image centre and one focal length
+    /// ([`super::pinhole_init::centred_initialization`]).
+    CentredFocal {
+        /// The focal length, pixels.
+        focal_px: f64,
+    },
 }
+
+/// A pinhole calibration refined from Zhang's start to an RMS above this (pixels), or a
+/// start that failed, is tried again from the centred start, and the better fit kept: a
+/// detector's noise is 0.05 to 0.5 px.
+pub const PINHOLE_FALLBACK_RMS_PX: f64 = 0.5;
 
 /// What became of an input image.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
@@ -450,6 +462,16 @@ pub fn calibrate_intrinsics(
         });
     }
     let (w, h) = (corners.width, corners.height);
+    let centred = || -> Result<(Camera, Vec<Isometry3<f64>>, Initialization), IntrinsicsError> {
+        let init = centred_initialization(&usable, target)?;
+        Ok((
+            init.camera.into(),
+            init.camera_from_board,
+            Initialization::CentredFocal {
+                focal_px: init.zhang.fx,
+            },
+        ))
+    };
     let (initial_camera, initial_poses, initialization): (Camera, _, _) = match model {
         IntrinsicModel::KannalaBrandt => {
             let init = kannala_brandt_initialization(&usable, target, &options.kb_init)?;
@@ -462,14 +484,18 @@ pub fn calibrate_intrinsics(
                 },
             )
         }
-        IntrinsicModel::PinholeRadtan => {
-            let init = pinhole_initialization(&usable, target)?;
-            (
+        IntrinsicModel::PinholeRadtan => match pinhole_initialization(&usable, target) {
+            Ok(init) => (
                 init.camera.into(),
                 init.camera_from_board,
                 Initialization::Zhang(init.zhang),
-            )
-        }
+            ),
+            Err(
+                zhang @ (IntrinsicsError::DegenerateViews { .. }
+                | IntrinsicsError::Initialization(_)),
+            ) => centred().map_err(|_| zhang)?,
+            Err(e) => return Err(e),
+        },
     };
     let spread = normal_spread_deg(&initial_poses);
     if spread < options.min_normal_spread_deg {
@@ -486,14 +512,43 @@ pub fn calibrate_intrinsics(
     let mut initial = [0.0; 8];
     initial.copy_from_slice(initial_camera.params());
     let initial_rms_px = residual_stats(&initial_camera, &initial_poses, &data, None).0;
-    let robust = robust_refine(
+    let mut robust = robust_refine(
         model,
         (w, h),
         &initial,
         &initial_poses,
         &data,
         &options.solver,
-    )?;
+    );
+    let mut initialization = initialization;
+    let mut initial_rms_px = initial_rms_px;
+    let fit = |r: &RobustRefined| -> f64 {
+        model
+            .camera(w, h, &r.refined.params)
+            .map_or(f64::INFINITY, |c| {
+                residual_stats(&c, &r.refined.camera_from_board, &data, Some(&r.inliers)).0
+            })
+    };
+    let poor = robust
+        .as_ref()
+        .map_or(true, |r| fit(r) > PINHOLE_FALLBACK_RMS_PX);
+    if model == IntrinsicModel::PinholeRadtan
+        && poor
+        && !matches!(initialization, Initialization::CentredFocal { .. })
+        && let Ok((camera, poses, init)) = centred()
+    {
+        let mut start = [0.0; 8];
+        start.copy_from_slice(camera.params());
+        if let Ok(alternative) =
+            robust_refine(model, (w, h), &start, &poses, &data, &options.solver)
+            && robust.as_ref().map_or(true, |r| fit(&alternative) < fit(r))
+        {
+            initial_rms_px = residual_stats(&camera, &poses, &data, None).0;
+            initialization = init;
+            robust = Ok(alternative);
+        }
+    }
+    let robust = robust?;
     let refined = &robust.refined;
     let camera = model.camera(w, h, &refined.params)?;
     let (rms_px, rms_distance_px, usable_residuals) = residual_stats(

@@ -15,6 +15,12 @@
 //!    1e-6 relative (Zhang's section 3.3 alternation). A round whose terms cannot unproject
 //!    every corner (a fold of the distortion inside the image) ends the alternation, and the
 //!    last camera that could is kept.
+//!
+//! [`centred_initialization`] is the fallback when the closed form is poorly conditioned (views
+//! that differ little in orientation, boards partly outside the image): the principal point
+//! at the image centre, square pixels and no distortion leave one unknown, `1 / f^2`, which
+//! Zhang's two constraints per homography (`h1' W h2 = 0`, `h1' W h1 = h2' W h2`) determine
+//! by linear least squares over every image.
 
 use ibc_camera_models::{Camera, CameraModel, PinholeRadtan};
 use nalgebra::{Isometry3, Vector2};
@@ -222,6 +228,73 @@ pub fn pinhole_initialization(
         zhang,
         camera,
         alternations,
+        camera_from_board: poses,
+    })
+}
+
+/// The fallback initialization (see the module docs): the principal point at the image
+/// centre, `fx = fy = f` from the homographies of the division-undistorted corners, no
+/// distortion, and every board pose by PnP.
+///
+/// # Errors
+/// [`IntrinsicsError::CollinearCorners`] for an image without a homography,
+/// [`IntrinsicsError::Initialization`] when the constraints give no positive `1 / f^2`,
+/// [`IntrinsicsError::BoardPose`] when an image has no pose.
+pub fn centred_initialization(
+    corners: &CornerSet,
+    target: &PlanarTarget,
+) -> Result<PinholeInitialization, IntrinsicsError> {
+    let data = all_correspondences(target, corners);
+    let raw: Vec<Vec<Vector2<f64>>> = data.iter().map(|(_, px)| px.clone()).collect();
+    let (division_lambda, straightened) = division_undistorted(&data, corners);
+    let (w, h) = (corners.width, corners.height);
+    let (cx, cy) = (0.5 * f64::from(w) - 0.5, 0.5 * f64::from(h) - 0.5);
+    let (mut aa, mut ab) = (0.0, 0.0);
+    for (((points, _), px), image) in data.iter().zip(&straightened).zip(&corners.images) {
+        let plane: Vec<Vector2<f64>> = points.iter().map(|p| p.xy().coords).collect();
+        let centred: Vec<Vector2<f64>> = px.iter().map(|p| p - Vector2::new(cx, cy)).collect();
+        let hom =
+            homography(&plane, &centred).ok_or_else(|| IntrinsicsError::CollinearCorners {
+                image: image.name.clone(),
+            })?;
+        let scale = hom.column(0).norm().max(hom.column(1).norm());
+        if !(scale.is_finite() && scale > 0.0) {
+            continue;
+        }
+        let m = hom / scale;
+        let (h1, h2) = (m.column(0), m.column(1));
+        // a / f^2 + b = 0 for each of Zhang's two constraints.
+        for (a, b) in [
+            (h1.x * h2.x + h1.y * h2.y, h1.z * h2.z),
+            (
+                h1.x * h1.x + h1.y * h1.y - h2.x * h2.x - h2.y * h2.y,
+                h1.z * h1.z - h2.z * h2.z,
+            ),
+        ] {
+            aa += a * a;
+            ab += a * b;
+        }
+    }
+    let inverse_f2 = -ab / aa;
+    if !(inverse_f2.is_finite() && inverse_f2 > 0.0) {
+        return Err(IntrinsicsError::Initialization(
+            "the homographies give no focal length with the principal point at the centre".into(),
+        ));
+    }
+    let f = inverse_f2.sqrt().recip();
+    let camera = PinholeRadtan::new(w, h, [0.0, 0.0, 0.0, 0.0, f, f, cx, cy])?;
+    let poses = all_board_poses(&Camera::from(camera.clone()), &data, &raw, corners)?;
+    Ok(PinholeInitialization {
+        division_lambda,
+        zhang: ZhangIntrinsics {
+            fx: f,
+            fy: f,
+            cx,
+            cy,
+            condition: f64::NAN,
+        },
+        camera,
+        alternations: 0,
         camera_from_board: poses,
     })
 }

@@ -62,6 +62,12 @@ pub enum InitializationReport {
         /// Conditioning of Zhang's constraints (see `zhang::ZHANG_MIN_CONDITION`).
         condition: f64,
     },
+    /// The centred fallback (pinhole): the principal point at the image centre, one focal
+    /// length.
+    CentredFocal {
+        /// The focal length, pixels.
+        focal_px: f64,
+    },
 }
 
 /// A failed quality gate as reported: its fields and its message.
@@ -159,6 +165,9 @@ impl IntrinsicsReport {
                 cy: z.cy,
                 condition: z.condition,
             },
+            Initialization::CentredFocal { focal_px } => InitializationReport::CentredFocal {
+                focal_px: *focal_px,
+            },
         };
         Self {
             format: REPORT_FORMAT,
@@ -254,6 +263,13 @@ impl IntrinsicsReport {
                 let _ = writeln!(
                     s,
                     "initialization: Zhang, fx = {fx:.2}, fy = {fy:.2}, cx = {cx:.2}, cy = {cy:.2} px"
+                );
+            }
+            InitializationReport::CentredFocal { focal_px } => {
+                let _ = writeln!(
+                    s,
+                    "initialization: principal point at the centre, f = {focal_px:.2} px \
+                     (Zhang's closed form refined to a poor fit)"
                 );
             }
         }

@@ -28,12 +28,13 @@ use ibc_bundle_adjust::{
     IntrinsicsSelection, RigObservation, RigRefinement, RigRefinementOptions, RobustLoss,
 };
 use ibc_camera_models::{Camera, CameraModel, Rig, RigCamera};
+use ibc_hand_eye::{DaniilidisOptions, MotionPair, RefineOptions, daniilidis};
 use ibc_rig_averaging::pose_mean;
 use nalgebra::Isometry3;
 
 use super::error::TargetError;
 use crate::intrinsics::{
-    CornerSet, IntrinsicCalibration, IntrinsicModel, IntrinsicsOptions, PlanarTarget,
+    CornerSet, IntrinsicCalibration, IntrinsicModel, IntrinsicsOptions, MAX_RMS_PX, PlanarTarget,
     calibrate_intrinsics,
 };
 
@@ -58,6 +59,9 @@ pub struct TargetCalibrationOptions {
     pub reference_camera: usize,
     /// Robust loss of the joint refinement (default Cauchy, 1 px).
     pub loss: RobustLoss,
+    /// Images with fewer corners are left out (default 24, six tags: a board mostly outside
+    /// the image gives a poor start to the closed-form initializations).
+    pub min_corners_per_image: usize,
 }
 
 impl Default for TargetCalibrationOptions {
@@ -66,6 +70,7 @@ impl Default for TargetCalibrationOptions {
             intrinsics: IntrinsicsOptions::default(),
             reference_camera: 0,
             loss: RobustLoss::Cauchy { scale: 1.0 },
+            min_corners_per_image: 24,
         }
     }
 }
@@ -75,8 +80,11 @@ impl Default for TargetCalibrationOptions {
 pub struct CameraLink {
     /// The camera it was chained from (`None` for the reference camera).
     pub parent: Option<usize>,
-    /// Views the two cameras share.
+    /// Times both cameras saw a board (the same board, or with `hand_eye` each its own).
     pub shared_views: usize,
+    /// Whether the link is a hand-eye calibration between the two cameras' motions (they
+    /// never saw the same board at the same time).
+    pub hand_eye: bool,
 }
 
 /// The calibrated rig.
@@ -117,6 +125,30 @@ pub struct TargetCalibration {
 }
 
 impl TargetCalibration {
+    /// Why the calibration should not be trusted, camera by camera: the quality gates of each
+    /// camera's intrinsic calibration ([`crate::intrinsics::IntrinsicsWarning`]), a joint refinement that did not
+    /// converge, or a camera whose joint RMS exceeds [`MAX_RMS_PX`]. Empty for a calibration
+    /// to use.
+    pub fn warnings(&self) -> Vec<String> {
+        let mut out = Vec::new();
+        for (name, cal) in self.names.iter().zip(&self.intrinsics) {
+            for w in &cal.warnings {
+                out.push(format!("`{name}`: {w}"));
+            }
+        }
+        for (name, rms) in self.names.iter().zip(&self.rms_px) {
+            if !(rms.is_finite() && *rms <= MAX_RMS_PX) {
+                out.push(format!(
+                    "`{name}`: RMS {rms:.3} px after the joint refinement, above {MAX_RMS_PX} px"
+                ));
+            }
+        }
+        if !self.converged {
+            out.push("the joint refinement did not converge".into());
+        }
+        out
+    }
+
     /// The calibrated rig, with Kalibr's `rostopic` (`/NAME/image_raw`) and `cam_overlaps`
     /// (cameras that shared a view).
     pub fn to_rig(&self) -> Rig {
@@ -175,10 +207,23 @@ pub fn calibrate_rig_from_target(
             )));
         }
     }
-    let intrinsics: Vec<IntrinsicCalibration> = cameras
+    // Images with a few corners (a board mostly out of view) make poor homographies for the
+    // closed-form starts; they are left out of the whole calibration.
+    let kept: Vec<CornerSet> = cameras
         .iter()
         .map(|c| {
-            calibrate_intrinsics(&c.corners, target, c.model, &options.intrinsics).map_err(|e| {
+            let mut corners = c.corners.clone();
+            corners
+                .images
+                .retain(|i| i.corners.len() >= options.min_corners_per_image);
+            corners
+        })
+        .collect();
+    let intrinsics: Vec<IntrinsicCalibration> = cameras
+        .iter()
+        .zip(&kept)
+        .map(|(c, corners)| {
+            calibrate_intrinsics(corners, target, c.model, &options.intrinsics).map_err(|e| {
                 TargetError::Camera {
                     camera: c.name.clone(),
                     reason: e.to_string(),
@@ -188,11 +233,11 @@ pub fn calibrate_rig_from_target(
         .collect::<Result<_, _>>()?;
 
     // Board poses by time (image name) for each camera.
-    let poses: Vec<HashMap<&str, Isometry3<f64>>> = cameras
+    let poses: Vec<HashMap<&str, Isometry3<f64>>> = kept
         .iter()
         .zip(&intrinsics)
-        .map(|(c, cal)| {
-            c.corners
+        .map(|(corners, cal)| {
+            corners
                 .images
                 .iter()
                 .zip(&cal.camera_from_board)
@@ -200,7 +245,8 @@ pub fn calibrate_rig_from_target(
                 .collect()
         })
         .collect();
-    let mut pair_views: BTreeMap<(usize, usize), Vec<Isometry3<f64>>> = BTreeMap::new();
+    // Relative poses of every pair of cameras at the times both saw a board.
+    let mut pair_views: BTreeMap<(usize, usize), Vec<(&str, Isometry3<f64>)>> = BTreeMap::new();
     for i in 0..n {
         for j in 0..n {
             if i == j {
@@ -212,43 +258,86 @@ pub fn calibrate_rig_from_target(
                 .collect();
             shared.sort_by(|a, b| a.0.cmp(b.0));
             if !shared.is_empty() {
-                pair_views.insert((i, j), shared.into_iter().map(|(_, p)| p).collect());
+                pair_views.insert((i, j), shared);
             }
         }
     }
+    // A pair whose relative pose stays put saw one board; one whose relative pose wanders saw
+    // two boards while the rig moved.
+    let same_board = |views: &[(&str, Isometry3<f64>)]| -> Option<Isometry3<f64>> {
+        let relative: Vec<Isometry3<f64>> = views.iter().map(|v| v.1).collect();
+        let mean = pose_mean(&relative, None).ok()?.mean;
+        let steady = relative.iter().all(|r| {
+            let d = mean.inverse() * r;
+            d.rotation.angle().to_degrees() < SAME_BOARD_DEG
+                && d.translation.vector.norm() < SAME_BOARD_M
+        });
+        steady.then_some(mean)
+    };
+    let shared_board: BTreeMap<(usize, usize), Isometry3<f64>> = pair_views
+        .iter()
+        .filter_map(|(&pair, views)| same_board(views).map(|mean| (pair, mean)))
+        .collect();
     let overlaps: Vec<(usize, usize, usize)> = pair_views
         .iter()
-        .filter(|((i, j), _)| i < j)
+        .filter(|((i, j), _)| i < j && shared_board.contains_key(&(*i, *j)))
         .map(|(&(i, j), v)| (i, j, v.len()))
         .collect();
 
-    // A spanning tree from the reference camera, widest links first (Prim's algorithm on the
-    // number of shared views).
+    // A spanning tree from the reference camera (Prim's algorithm): shared views first, the
+    // widest link first; a camera that shares no view is linked by hand-eye calibration
+    // between the two cameras' motions (each seeing its own board standing still).
     let mut rig_from_camera: Vec<Option<Isometry3<f64>>> = vec![None; n];
     let mut links = vec![
         CameraLink {
             parent: None,
-            shared_views: 0
+            shared_views: 0,
+            hand_eye: false,
         };
         n
     ];
+    // The board each camera sees: cameras linked by shared views share a board.
+    let mut board_of: Vec<usize> = (0..n).collect();
     rig_from_camera[reference] = Some(Isometry3::identity());
     loop {
-        let best = pair_views
+        let open = |(i, j): &(usize, usize)| {
+            rig_from_camera[*i].is_some() && rig_from_camera[*j].is_none()
+        };
+        let shared = shared_board
             .iter()
-            .filter(|((i, j), _)| rig_from_camera[*i].is_some() && rig_from_camera[*j].is_none())
-            .max_by_key(|((i, j), v)| (v.len(), std::cmp::Reverse((*i, *j))));
-        let Some((&(i, j), views)) = best else {
+            .filter(|(pair, _)| open(pair))
+            .max_by_key(|&(&(i, j), _)| (pair_views[&(i, j)].len(), std::cmp::Reverse((i, j))));
+        if let Some((&(i, j), mean)) = shared {
+            rig_from_camera[j] = rig_from_camera[i].map(|p| p * mean);
+            links[j] = CameraLink {
+                parent: Some(i),
+                shared_views: pair_views[&(i, j)].len(),
+                hand_eye: false,
+            };
+            board_of[j] = board_of[i];
+            continue;
+        }
+        let moving = pair_views
+            .iter()
+            .filter(|(pair, views)| open(pair) && views.len() >= MIN_HAND_EYE_TIMES)
+            .max_by_key(|&(&(i, j), v)| (v.len(), std::cmp::Reverse((i, j))));
+        let Some((&(i, j), views)) = moving else {
             break;
         };
-        let mean = pose_mean(views, None).map_err(|e| TargetError::Camera {
-            camera: names[j].clone(),
-            reason: format!("averaging its pose relative to `{}`: {e}", names[i]),
-        })?;
-        rig_from_camera[j] = rig_from_camera[i].map(|p| p * mean.mean);
+        let x =
+            hand_eye_link(views, &poses[i], &poses[j]).map_err(|reason| TargetError::Camera {
+                camera: names[j].clone(),
+                reason: format!(
+                    "it shares no view with `{}`, and the hand-eye calibration between their \
+                     motions failed: {reason}",
+                    names[i]
+                ),
+            })?;
+        rig_from_camera[j] = rig_from_camera[i].map(|p| p * x);
         links[j] = CameraLink {
             parent: Some(i),
             shared_views: views.len(),
+            hand_eye: true,
         };
     }
     if let Some(missing) = rig_from_camera.iter().position(Option::is_none) {
@@ -262,29 +351,80 @@ pub fn calibrate_rig_from_target(
         .map(|p| p.unwrap_or_default())
         .collect();
 
-    // The joint refinement: one frame per time any camera saw the board.
-    let mut times: BTreeMap<&str, Isometry3<f64>> = BTreeMap::new();
-    for (c, camera_poses) in poses.iter().enumerate() {
-        for (time, camera_from_board) in camera_poses {
-            times
-                .entry(time)
-                .or_insert_with(|| (initial_rig_from_camera[c] * camera_from_board).inverse());
+    // Boards: the reference camera's is the world; the others are free targets standing
+    // still, placed from the times when a camera on a placed board saw the rig.
+    let mut boards: Vec<usize> = board_of.clone();
+    boards.sort_unstable();
+    boards.dedup();
+    let world_board = board_of[reference];
+    let mut world_from_board: BTreeMap<usize, Isometry3<f64>> =
+        BTreeMap::from([(world_board, Isometry3::identity())]);
+    let mut all_times: Vec<&str> = poses.iter().flat_map(|p| p.keys().copied()).collect();
+    all_times.sort_unstable();
+    all_times.dedup();
+    // world_from_rig at a time, from any camera whose board is placed.
+    let rig_pose = |time: &str, placed: &BTreeMap<usize, Isometry3<f64>>| {
+        (0..n).find_map(|c| {
+            let board = placed.get(&board_of[c])?;
+            let camera_from_board = poses[c].get(time)?;
+            Some(board * camera_from_board.inverse() * initial_rig_from_camera[c].inverse())
+        })
+    };
+    while world_from_board.len() < boards.len() {
+        let before = world_from_board.len();
+        for &b in &boards {
+            if world_from_board.contains_key(&b) {
+                continue;
+            }
+            let estimates: Vec<Isometry3<f64>> = all_times
+                .iter()
+                .filter_map(|time| {
+                    let world_from_rig = rig_pose(time, &world_from_board)?;
+                    let c = (0..n).find(|&c| board_of[c] == b && poses[c].contains_key(time))?;
+                    Some(world_from_rig * initial_rig_from_camera[c] * poses[c][time])
+                })
+                .collect();
+            if let Ok(mean) = pose_mean(&estimates, None) {
+                world_from_board.insert(b, mean.mean);
+            }
+        }
+        if world_from_board.len() == before {
+            break;
         }
     }
-    let frame_of: HashMap<&str, usize> = times.keys().enumerate().map(|(k, t)| (*t, k)).collect();
+    let free_boards: Vec<usize> = boards
+        .iter()
+        .copied()
+        .filter(|&b| b != world_board)
+        .collect();
+    let target_of_board: HashMap<usize, usize> = free_boards
+        .iter()
+        .enumerate()
+        .map(|(k, &b)| (b, k))
+        .collect();
+    let world_from_target: Vec<Isometry3<f64>> = free_boards
+        .iter()
+        .map(|b| world_from_board.get(b).copied().unwrap_or_default())
+        .collect();
+
+    // The joint refinement: one frame per time any camera saw a board.
+    let times: Vec<(&str, Isometry3<f64>)> = all_times
+        .iter()
+        .filter_map(|t| rig_pose(t, &world_from_board).map(|p| (*t, p)))
+        .collect();
+    let frame_of: HashMap<&str, usize> = times.iter().enumerate().map(|(k, t)| (t.0, k)).collect();
     let mut observations = Vec::new();
-    for (c, (camera, cal)) in cameras.iter().zip(&intrinsics).enumerate() {
-        for ((image, pose), inliers) in camera
-            .corners
+    let mut observation_targets = Vec::new();
+    for (c, (corners, cal)) in kept.iter().zip(&intrinsics).enumerate() {
+        for ((image, pose), inliers) in corners
             .images
             .iter()
             .zip(&cal.camera_from_board)
             .zip(&cal.inliers)
         {
-            if pose.is_none() {
+            let (Some(_), Some(&frame)) = (pose, frame_of.get(image.name.as_str())) else {
                 continue;
-            }
-            let frame = frame_of[image.name.as_str()];
+            };
             for (corner, inlier) in image.corners.iter().zip(inliers) {
                 if *inlier {
                     observations.push(RigObservation {
@@ -293,6 +433,7 @@ pub fn calibrate_rig_from_target(
                         world_point: target.point(corner.row, corner.col).coords,
                         pixel: corner.pixel(),
                     });
+                    observation_targets.push(target_of_board.get(&board_of[c]).copied());
                 }
             }
         }
@@ -300,22 +441,27 @@ pub fn calibrate_rig_from_target(
     let problem = RigRefinement {
         cameras: intrinsics.iter().map(|c| c.camera.clone()).collect(),
         rig_from_camera: initial_rig_from_camera.clone(),
-        world_from_rig: times.values().copied().collect(),
+        world_from_rig: times.iter().map(|t| t.1).collect(),
         observations,
     };
     let result = problem
-        .refine(&RigRefinementOptions {
-            loss: options.loss,
-            reference_camera: reference,
-            covariance: true,
-            intrinsics: IntrinsicsSelection::All,
-            ..Default::default()
-        })
+        .refine_with_targets(
+            &world_from_target,
+            &observation_targets,
+            &RigRefinementOptions {
+                loss: options.loss,
+                reference_camera: reference,
+                covariance: true,
+                intrinsics: IntrinsicsSelection::All,
+                ..Default::default()
+            },
+        )
         .map_err(|e| TargetError::Refinement(e.to_string()))?;
 
     let m = 2 * problem.observations.len();
     let params = 6 * problem.world_from_rig.len()
         + 6 * (n - 1)
+        + 6 * world_from_target.len()
         + problem
             .cameras
             .iter()
@@ -350,13 +496,16 @@ pub fn calibrate_rig_from_target(
         })
         .collect();
     let mut sums = vec![(0.0, 0usize); n];
-    for o in &problem.observations {
+    for (o, target) in problem.observations.iter().zip(&observation_targets) {
         let camera = &result.cameras[o.camera];
         let camera_from_world =
             (result.world_from_rig[o.frame] * result.rig_from_camera[o.camera]).inverse();
-        if let Ok(px) =
-            camera.project(&(camera_from_world * nalgebra::Point3::from(o.world_point)).coords)
-        {
+        let on_board = nalgebra::Point3::from(o.world_point);
+        let world_point = match target.and_then(|t| result.world_from_target.get(t)) {
+            Some(world_from_target) => world_from_target * on_board,
+            None => on_board,
+        };
+        if let Ok(px) = camera.project(&(camera_from_world * world_point).coords) {
             sums[o.camera].0 += (px - o.pixel).norm_squared();
             sums[o.camera].1 += 2;
         }
@@ -387,4 +536,40 @@ pub fn calibrate_rig_from_target(
         observations: problem.observations.len(),
         converged: result.summary.termination.is_converged(),
     })
+}
+
+/// Two cameras saw the same board when their relative pose stays within this angle of its
+/// mean over their shared times, degrees (single-image poses scatter by hundredths of a
+/// degree; a rig turning in front of two boards changes it by tens).
+pub const SAME_BOARD_DEG: f64 = 1.0;
+/// ... and within this distance, metres.
+pub const SAME_BOARD_M: f64 = 0.02;
+/// Fewest common times for a hand-eye link.
+pub const MIN_HAND_EYE_TIMES: usize = 3;
+
+/// `camera_i_from_camera_j` from the two cameras' motions at their common times `views`
+/// (Daniilidis' hand-eye calibration on every pair of times, then refined): camera `i` moves
+/// by `A = P_i(a) P_i(b)^-1` while camera `j` moves by `B = P_j(a) P_j(b)^-1`, with `P` the
+/// `camera_from_board` of each camera's own board, and `A X = X B`.
+fn hand_eye_link(
+    views: &[(&str, Isometry3<f64>)],
+    poses_i: &HashMap<&str, Isometry3<f64>>,
+    poses_j: &HashMap<&str, Isometry3<f64>>,
+) -> Result<Isometry3<f64>, String> {
+    let times: Vec<&str> = views.iter().map(|v| v.0).collect();
+    let mut pairs = Vec::new();
+    for (k, a) in times.iter().enumerate() {
+        for b in &times[k + 1..] {
+            let (ia, ib, ja, jb) = (poses_i[a], poses_i[b], poses_j[a], poses_j[b]);
+            let (motion_i, motion_j) = (ia * ib.inverse(), ja * jb.inverse());
+            pairs.push(MotionPair::new(motion_i, motion_j));
+        }
+    }
+    let options = DaniilidisOptions {
+        refine: Some(RefineOptions::default()),
+        ..Default::default()
+    };
+    daniilidis(&pairs, &options)
+        .map(|s| s.a_from_b)
+        .map_err(|e| e.to_string())
 }

@@ -19,4 +19,7 @@ pub use detect::{Detection, detect_april_grid, read_gray_image};
 pub use error::TargetError;
 pub use images::{CameraDetections, CameraFolder, detect_camera_folder, list_camera_folders};
 pub use render::{RenderOptions, render_april_grid, rendered_corners};
-pub use simulate::{SimulatedTargetImages, TargetSimulationOptions, simulate_target_images};
+pub use simulate::{
+    SimulatedTargetImages, StaticBoardOptions, TargetSimulationOptions, simulate_static_boards,
+    simulate_target_images,
+};

@@ -9,9 +9,11 @@
 
 use std::path::Path;
 
-use ibc_camera_models::{Camera, Rig};
+use ibc_camera_models::{Camera, Rig, RigCamera};
 use image::GrayImage;
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
+use rand::{RngExt, SeedableRng};
+use rand_chacha::ChaCha8Rng;
 
 use super::aprilgrid::AprilGrid;
 use super::error::TargetError;
@@ -67,8 +69,9 @@ pub struct SimulatedTargetImages {
     pub grid: AprilGrid,
     /// Image names (one per time: `t0000`, `t0001`, ...).
     pub times: Vec<String>,
-    /// `rig_from_board` at each time.
-    pub rig_from_board: Vec<Isometry3<f64>>,
+    /// `camera_from_board` of every image, `[camera][time]` (`None` where the camera does
+    /// not see its board).
+    pub camera_from_board: Vec<Vec<Option<Isometry3<f64>>>>,
     /// The images, `[camera][time]`, `None` where the camera does not see the board.
     pub images: Vec<Vec<Option<GrayImage>>>,
 }
@@ -141,7 +144,7 @@ pub fn simulate_target_images(
     let height = target.coordinate(target.rows - 1);
     let total = n * options.views_per_camera;
     let mut times = Vec::with_capacity(total);
-    let mut rig_from_board = Vec::with_capacity(total);
+    let mut poses: Vec<Vec<Option<Isometry3<f64>>>> = vec![Vec::with_capacity(total); n];
     let mut images: Vec<Vec<Option<GrayImage>>> = vec![Vec::with_capacity(total); n];
     for t in 0..total {
         let c = t % n;
@@ -166,37 +169,177 @@ pub fn simulate_target_images(
         let board = rig.cameras[c].rig_from_camera * facing(pose, height);
         for (j, rc) in rig.cameras.iter().enumerate() {
             let camera_from_board = rc.rig_from_camera.inverse() * board;
-            // The printed face looks along +z: a camera behind the board sees its back.
-            let camera_in_board = camera_from_board.inverse().translation.vector;
-            let seen = camera_in_board.z > 0.0
-                && rendered_corners(&rc.camera, &camera_from_board, &target, 2.0).len()
-                    >= MIN_RENDERED_CORNERS;
-            images[j].push(if seen {
-                let render = RenderOptions {
-                    seed: options
-                        .seed
-                        .wrapping_mul(7_919)
-                        .wrapping_add((t * n + j) as u64),
-                    ..options.render.clone()
-                };
-                Some(render_april_grid(
-                    &rc.camera,
-                    &camera_from_board,
-                    grid,
-                    &render,
-                )?)
-            } else {
-                None
-            });
+            let image = render_if_seen(
+                rc,
+                &camera_from_board,
+                grid,
+                &options.render,
+                options.seed,
+                t * n + j,
+            )?;
+            poses[j].push(image.is_some().then_some(camera_from_board));
+            images[j].push(image);
         }
         times.push(format!("t{t:04}"));
-        rig_from_board.push(board);
     }
     Ok(SimulatedTargetImages {
         rig: rig.clone(),
         grid: *grid,
         times,
-        rig_from_board,
+        camera_from_board: poses,
         images,
     })
+}
+
+/// The image of `grid` at `camera_from_board` in `camera` if the camera sees the printed face
+/// and at least [`MIN_RENDERED_CORNERS`] corners; `index` picks the noise stream.
+fn render_if_seen(
+    camera: &RigCamera,
+    camera_from_board: &Isometry3<f64>,
+    grid: &AprilGrid,
+    render: &RenderOptions,
+    seed: u64,
+    index: usize,
+) -> Result<Option<GrayImage>, TargetError> {
+    let target = grid.planar_target();
+    // The printed face looks along +z: a camera behind the board sees its back.
+    let camera_in_board = camera_from_board.inverse().translation.vector;
+    let seen = camera_in_board.z > 0.0
+        && rendered_corners(&camera.camera, camera_from_board, &target, 2.0).len()
+            >= MIN_RENDERED_CORNERS;
+    if !seen {
+        return Ok(None);
+    }
+    let render = RenderOptions {
+        seed: seed.wrapping_mul(7_919).wrapping_add(index as u64),
+        ..render.clone()
+    };
+    render_april_grid(&camera.camera, camera_from_board, grid, &render).map(Some)
+}
+
+/// Options of [`simulate_static_boards`].
+#[derive(Clone, Debug)]
+pub struct StaticBoardOptions {
+    /// Times (rig poses). Default 40.
+    pub times: usize,
+    /// Largest rotation of the rig away from its rest pose, degrees (about a random axis).
+    /// Default 25.
+    pub max_rotation_deg: f64,
+    /// Largest translation of the rig from its rest pose along each axis, metres. Default 0.1.
+    pub max_translation_m: f64,
+    /// Distance of each board from its camera at the rest pose, metres. Default 0.5.
+    pub board_distance_m: f64,
+    /// Rendering (blur, noise, levels).
+    pub render: RenderOptions,
+    /// Seed of the board placements, the motion and the noise.
+    pub seed: u64,
+}
+
+impl Default for StaticBoardOptions {
+    fn default() -> Self {
+        Self {
+            times: 40,
+            max_rotation_deg: 25.0,
+            max_translation_m: 0.1,
+            board_distance_m: 0.5,
+            render: RenderOptions::default(),
+            seed: 0,
+        }
+    }
+}
+
+/// A rig moving in front of boards standing still, one board in front of each camera (the
+/// way to calibrate cameras that never see one board at the same time: each camera sees its
+/// own board while the rig turns about several axes). Board `j` faces camera `j` at the rest
+/// pose, `board_distance_m` along its optical axis, tilted up to 20 degrees; at each time the
+/// rig turns by up to `max_rotation_deg` and moves by up to `max_translation_m`, and every
+/// camera renders its own board when it sees it. The boards are identical prints (camera `j`
+/// never sees board `k != j` here, so which board is which needs no tag offsets).
+///
+/// # Errors
+/// [`TargetError::InvalidInput`] for a rig without cameras or invalid options.
+pub fn simulate_static_boards(
+    rig: &Rig,
+    grid: &AprilGrid,
+    options: &StaticBoardOptions,
+) -> Result<SimulatedTargetImages, TargetError> {
+    let n = rig.cameras.len();
+    if n == 0 {
+        return Err(TargetError::InvalidInput("the rig has no cameras".into()));
+    }
+    let valid = options.max_rotation_deg.is_finite()
+        && (0.0..=90.0).contains(&options.max_rotation_deg)
+        && options.max_translation_m.is_finite()
+        && options.max_translation_m >= 0.0
+        && options.board_distance_m.is_finite()
+        && options.board_distance_m > 0.0;
+    if !valid {
+        return Err(TargetError::InvalidInput(format!(
+            "static boards: rotation {} deg must be in [0, 90], translation {} m >= 0 and \
+             distance {} m > 0",
+            options.max_rotation_deg, options.max_translation_m, options.board_distance_m
+        )));
+    }
+    let mut rng = ChaCha8Rng::seed_from_u64(options.seed);
+    let target = grid.planar_target();
+    let centre = target.center().coords;
+    // world_from_board of each camera's board, the rig at rest being the world.
+    let boards: Vec<Isometry3<f64>> = rig
+        .cameras
+        .iter()
+        .map(|c| {
+            let tilt = UnitQuaternion::from_scaled_axis(
+                random_unit(&mut rng) * 20f64.to_radians() * rng.random::<f64>(),
+            );
+            let spin = UnitQuaternion::from_axis_angle(
+                &Vector3::z_axis(),
+                std::f64::consts::TAU * rng.random::<f64>(),
+            );
+            // Board z towards the camera: the board turned half a turn about x from facing
+            // away, then tilted and spun.
+            let facing = UnitQuaternion::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI);
+            let rotation = tilt * facing * spin;
+            let translation = Vector3::z() * options.board_distance_m - rotation * centre;
+            c.rig_from_camera * Isometry3::from_parts(translation.into(), rotation)
+        })
+        .collect();
+    let mut times = Vec::with_capacity(options.times);
+    let mut poses: Vec<Vec<Option<Isometry3<f64>>>> = vec![Vec::with_capacity(options.times); n];
+    let mut images: Vec<Vec<Option<GrayImage>>> = vec![Vec::with_capacity(options.times); n];
+    for t in 0..options.times {
+        let angle = options.max_rotation_deg.to_radians() * rng.random::<f64>();
+        let rotation = UnitQuaternion::from_scaled_axis(random_unit(&mut rng) * angle);
+        let shift =
+            Vector3::from_fn(|_, _| (2.0 * rng.random::<f64>() - 1.0) * options.max_translation_m);
+        let world_from_rig = Isometry3::from_parts(shift.into(), rotation);
+        for (j, rc) in rig.cameras.iter().enumerate() {
+            let camera_from_board = (world_from_rig * rc.rig_from_camera).inverse() * boards[j];
+            let image = render_if_seen(
+                rc,
+                &camera_from_board,
+                grid,
+                &options.render,
+                options.seed,
+                t * n + j,
+            )?;
+            poses[j].push(image.is_some().then_some(camera_from_board));
+            images[j].push(image);
+        }
+        times.push(format!("t{t:04}"));
+    }
+    Ok(SimulatedTargetImages {
+        rig: rig.clone(),
+        grid: *grid,
+        times,
+        camera_from_board: poses,
+        images,
+    })
+}
+
+/// A random unit vector (uniform on the sphere).
+fn random_unit(rng: &mut ChaCha8Rng) -> Vector3<f64> {
+    let z = 2.0 * rng.random::<f64>() - 1.0;
+    let phi = std::f64::consts::TAU * rng.random::<f64>();
+    let r = (1.0 - z * z).max(0.0).sqrt();
+    Vector3::new(r * phi.cos(), r * phi.sin(), z)
 }
