@@ -12,6 +12,9 @@ use ibc_pipeline::sim::SimError;
 /// Why a command failed.
 #[derive(Debug, thiserror::Error)]
 pub enum CliError {
+    /// A target calibration's input, detection or output failed.
+    #[error("{0}")]
+    Target(#[from] ibc_pipeline::target::TargetError),
     /// A scenario could not be resolved, simulated or written.
     #[error("{0}")]
     Simulation(#[from] SimError),

@@ -9,6 +9,7 @@ mod map;
 mod progress;
 mod selfcalib;
 mod simulate;
+mod target;
 
 use std::io::Write as _;
 use std::path::{Path, PathBuf};
@@ -125,6 +126,8 @@ pub enum Command {
     Scenarios,
     /// Calibrate one camera's intrinsics from chessboard corners (or simulated ones).
     Intrinsics(intrinsics::IntrinsicsArgs),
+    /// Calibrate a rig's intrinsics and extrinsics from images of an AprilGrid.
+    Target(target::TargetArgs),
 }
 
 /// Options of `ibc demo`.
@@ -328,5 +331,6 @@ pub fn run(cli: Cli) -> Result<Outcome, CliError> {
             print(&ibc_pipeline::sim::scenario_list()).map(|()| Outcome::Done)
         }
         Some(Command::Intrinsics(args)) => intrinsics::run_command(&args),
+        Some(Command::Target(args)) => target::run(&args),
     }
 }

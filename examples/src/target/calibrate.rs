@@ -95,6 +95,9 @@ pub struct TargetCalibration {
     pub names: Vec<String>,
     /// Each camera's own intrinsic calibration (step 1).
     pub intrinsics: Vec<IntrinsicCalibration>,
+    /// The corners each intrinsic calibration was given (the images with at least
+    /// [`TargetCalibrationOptions::min_corners_per_image`] corners), in its image order.
+    pub used_corners: Vec<CornerSet>,
     /// The cameras after the joint refinement.
     pub cameras: Vec<Camera>,
     /// `rig_from_camera` of each camera after the joint refinement (the reference camera's is
@@ -523,6 +526,7 @@ pub fn calibrate_rig_from_target(
     Ok(TargetCalibration {
         names,
         intrinsics,
+        used_corners: kept,
         cameras: result.cameras.clone(),
         rig_from_camera: result.rig_from_camera.clone(),
         initial_rig_from_camera,

@@ -4,6 +4,7 @@
 
 pub mod aprilgrid;
 pub mod calibrate;
+pub mod command;
 pub mod detect;
 pub mod error;
 pub mod images;
