@@ -13,6 +13,15 @@
 //! with a per-parameter observability figure (as [`crate::RigBundleAdjustment`]'s), so a caller
 //! can hold what the data does not determine and solve again.
 //!
+//! **Targets of unknown pose** ([`RigRefinement::refine_with_targets`]): points may instead lie
+//! on targets standing still whose poses are unknown too (calibration boards in front of
+//! cameras that never see one board at the same time): such a point is `X` in its target's
+//! frame, predicted as π_c(camera_from_rig_c · rig_from_world_i · world_from_target_k · X), and
+//! each `world_from_target_k` is one more SE(3) block (right perturbation, Jacobian
+//! `R [I, −[X]×]` into the world frame). The rig's motion separates a target's pose from the
+//! extrinsic of the camera that sees it, as in hand-eye calibration: rotations about at
+//! least two axes are needed.
+//!
 //! **Gauge.** Moving the rig frame by any rigid motion T (world_from_rig · T,
 //! T⁻¹ · rig_from_camera) leaves every prediction unchanged. The gauge is fixed by holding the
 //! extrinsic of [`RigRefinementOptions::reference_camera`] at its initial value: the rig frame

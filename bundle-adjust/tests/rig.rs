@@ -485,3 +485,58 @@ fn held_intrinsics_that_name_nothing_are_rejected() {
         );
     }
 }
+
+/// Cameras 1 and 2 see points on two targets of unknown pose (boards standing still) instead
+/// of world points: `refine_with_targets` recovers the extrinsics and the target poses from
+/// the rig's motion.
+#[test]
+fn points_on_free_targets_recover_extrinsics_and_target_poses() {
+    let s = scene(5, 3, 60, 12, 0.0, 0.0);
+    let mut rng = ChaCha8Rng::seed_from_u64(9);
+    let world_from_target: Vec<Isometry3<f64>> = (0..2)
+        .map(|_| perturb(&mut rng, &Isometry3::identity(), 1.0, 3.0))
+        .collect();
+    let mut start = s.start.clone();
+    let targets: Vec<Option<usize>> = start
+        .observations
+        .iter_mut()
+        .map(|o| {
+            let t = o.camera.checked_sub(1);
+            if let Some(t) = t {
+                o.world_point = world_from_target[t]
+                    .inverse_transform_point(&o.world_point.into())
+                    .coords;
+            }
+            t
+        })
+        .collect();
+    let start_targets: Vec<Isometry3<f64>> = world_from_target
+        .iter()
+        .map(|p| perturb(&mut rng, p, 0.01, 0.02))
+        .collect();
+    let result = start
+        .refine_with_targets(&start_targets, &targets, &RigRefinementOptions::default())
+        .unwrap();
+    assert!(
+        result.summary.termination.is_converged(),
+        "{}",
+        result.summary.report()
+    );
+    let (rot, trans) = extrinsic_errors(&result.rig_from_camera, &s.truth.rig_from_camera);
+    assert!(rot < 1e-7 && trans < 1e-7, "{rot} rad {trans} m");
+    let (rot, trans) = extrinsic_errors(&result.world_from_target, &world_from_target);
+    assert!(rot < 1e-7 && trans < 1e-7, "targets: {rot} rad {trans} m");
+    assert!(result.final_rms < 1e-6, "{}", result.final_rms);
+    // One entry per observation, and targets that exist.
+    let options = RigRefinementOptions::default();
+    assert!(matches!(
+        start.refine_with_targets(&start_targets, &targets[1..], &options),
+        Err(BundleAdjustError::LengthMismatch { .. })
+    ));
+    let mut wrong = targets.clone();
+    wrong[0] = Some(2);
+    assert!(matches!(
+        start.refine_with_targets(&start_targets, &wrong, &options),
+        Err(BundleAdjustError::IndexOutOfRange { .. })
+    ));
+}

@@ -55,6 +55,10 @@ pub struct TargetArgs {
     /// Simulation: the seed of the scene [default: 0].
     #[arg(long, value_name = "N", requires = "simulate")]
     pub seed: Option<u64>,
+    /// Simulation: the number of views (per camera for `stereo`, rig poses for `car`)
+    /// [default: the scene's].
+    #[arg(long, value_name = "N", requires = "simulate")]
+    pub views: Option<usize>,
 }
 
 /// Runs `ibc target`.
@@ -64,7 +68,7 @@ pub struct TargetArgs {
 pub fn run(args: &TargetArgs) -> Result<Outcome, CliError> {
     let (images, grid, models, truth) = match &args.simulate {
         Some(scene) => {
-            let sim = simulate_scene(scene, args.seed.unwrap_or(0))?;
+            let sim = simulate_scene(scene, args.seed.unwrap_or(0), args.views)?;
             let dir = args.out.join("images");
             sim.write(&dir)?;
             let truth_file = args.out.join("truth_camchain.yaml");

@@ -13,7 +13,12 @@
 //! - **Pinhole-radtan** ([`pinhole_init`]): the corners straightened by a one-parameter
 //!   division model ([`division_model`], Fitzgibbon, CVPR 2001), a homography per image
 //!   ([`homography`]), Zhang's closed form for `fx, fy, cx, cy` and his linear `k1, k2`
-//!   ([`zhang`], TPAMI 2000), alternated; `p1 = p2 = 0`.
+//!   ([`zhang`], TPAMI 2000), alternated; `p1 = p2 = 0`. When that start refines to an RMS
+//!   above [`PINHOLE_FALLBACK_RMS_PX`] or has no solution (views that differ little in
+//!   orientation, boards partly outside the image: a rig turning in front of a board standing
+//!   still), the calibration is run again from a centred start (principal point at the image
+//!   centre, one focal length from the homographies, [`pinhole_init::centred_initialization`])
+//!   and the better fit kept.
 //! - **Refinement** (both): Levenberg-Marquardt over the 8 intrinsics and every
 //!   `camera_from_board` with `ibc-bundle-adjust` (poses eliminated by the Schur complement)
 //!   and the analytic intrinsic Jacobians of `ibc-camera-models`. The parameter covariance is
@@ -120,7 +125,7 @@ pub use calibrate::{
     CornerResidual, ImageError, ImageStatus, Initialization, IntrinsicCalibration, IntrinsicModel,
     IntrinsicsOptions, IntrinsicsStatus, IntrinsicsWarning, MAX_CENTER_RELATIVE_STD,
     MAX_FOCAL_RELATIVE_STD, MAX_OUTLIER_SHARE, MAX_RMS_PX, MIN_CORNERS_PER_IMAGE, MIN_IMAGES,
-    MIN_NORMAL_SPREAD_DEG, calibrate_intrinsics, normal_spread_deg,
+    MIN_NORMAL_SPREAD_DEG, PINHOLE_FALLBACK_RMS_PX, calibrate_intrinsics, normal_spread_deg,
 };
 pub use corners::{CORNER_FORMAT, CORNER_FORMAT_VERSION, Corner, CornerSet, ImageCorners};
 pub use error::IntrinsicsError;

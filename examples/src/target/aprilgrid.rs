@@ -1,6 +1,12 @@
 //! Kalibr's AprilGrid target: its definition file, the board-frame position of every corner,
 //! and the printed pattern (for rendering).
 //!
+//! References: E. Olson, "AprilTag: a robust and flexible visual fiducial system", ICRA 2011,
+//! and J. Wang, E. Olson, "AprilTag 2", IROS 2016 (the tag36h11 family and its bit order: row
+//! by row from the tag's top left, most significant bit first); Kalibr's
+//! `GridCalibrationTargetAprilgrid` (the grid's layout, corner order and target file). The
+//! codes themselves come from the `aprilgrid` crate's table.
+//!
 //! # Layout (Kalibr's `GridCalibrationTargetAprilgrid`)
 //! `tag_rows x tag_cols` AprilTags of the 36h11 family with a 2-bit black border (a tag is
 //! 10 x 10 cells: 6 x 6 data bits inside the border), each `tag_size` metres wide, separated

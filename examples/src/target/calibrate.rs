@@ -1,5 +1,14 @@
 //! A rig calibrated from target corners: every camera's intrinsics, then the extrinsics from
-//! the views that cameras share, then one joint refinement of everything.
+//! the views that cameras share (or from the rig's motion), then one joint refinement of
+//! everything.
+//!
+//! References: K. Daniilidis, "Hand-eye calibration using dual quaternions", IJRR 1999 (the
+//! link between cameras that never share a view); P. Lébraly, E. Royer, O. Ait-Aider, M.
+//! Dhome, "Calibration of non-overlapping cameras — application to vision-based robotics",
+//! BMVC 2010 (each camera sees its own target standing still while the rig moves; hand-eye,
+//! then one bundle adjustment with the targets' poses unknown); P. Furgale, J. Rehder, R.
+//! Siegwart, "Unified temporal and spatial calibration for multi-sensor systems" (Kalibr),
+//! IROS 2013 (the AprilGrid and the camchain).
 //!
 //! # Method
 //! 1. **Intrinsics**, camera by camera, from its own corners
@@ -11,16 +20,24 @@
 //!    ([`ibc_rig_averaging::pose_mean`]: Markley's quaternion mean, the mean translation), and
 //!    a spanning tree from the reference camera over the pairs with the most shared views
 //!    chains them into `rig_from_camera` (the reference camera's frame is the rig's).
+//!    A pair whose relative pose wanders over their shared times (by more than
+//!    [`SAME_BOARD_DEG`] or [`SAME_BOARD_M`]) saw two boards while the rig moved: such cameras
+//!    are linked by a **hand-eye calibration** between their motions (Daniilidis, refined) when
+//!    no shared view links them, each camera's board standing still; cameras linked by shared
+//!    views share a board.
 //! 3. **Joint refinement** ([`ibc_bundle_adjust::RigRefinement`] with every intrinsic free):
-//!    the board is the world (its corners exact and fixed), one `board_from_rig` per time,
-//!    one `rig_from_camera` per camera (the reference held), every camera's intrinsics;
+//!    the reference camera's board is the world (its corners exact and fixed), the other
+//!    boards targets of unknown pose ([`RigRefinement::refine_with_targets`]), one
+//!    `world_from_rig` per time, one `rig_from_camera` per camera (the reference held), every
+//!    camera's intrinsics;
 //!    Cauchy loss of 1 px on the corners the intrinsic calibration kept as inliers. The
 //!    covariances are scaled by the a-posteriori variance factor `sum r^2 / (m - n)`.
 //!
-//! A camera that never sees the board at the same time as a camera already linked to the
-//! reference is not determined by one board and one time: [`TargetError::NotConnected`]
-//! names it. (A rig whose cameras never share a view needs the rig's own motion between the
-//! views, from odometry or from several boards standing still; neither is built yet.)
+//! A camera with no time in common with a camera linked to the reference is not determined:
+//! [`TargetError::NotConnected`] names it. One board carried around a rig standing still
+//! cannot link cameras that never see it at the same time (each time's board pose is a new
+//! unknown); the rig must move in front of boards standing still instead. Rotations about at
+//! least two axes are needed (a car driving on a plane leaves the cameras' heights free).
 
 use std::collections::{BTreeMap, HashMap};
 
@@ -129,9 +146,11 @@ pub struct TargetCalibration {
 
 impl TargetCalibration {
     /// Why the calibration should not be trusted, camera by camera: the quality gates of each
-    /// camera's intrinsic calibration ([`crate::intrinsics::IntrinsicsWarning`]), a joint refinement that did not
-    /// converge, or a camera whose joint RMS exceeds [`MAX_RMS_PX`]. Empty for a calibration
-    /// to use.
+    /// camera's intrinsic calibration ([`crate::intrinsics::IntrinsicsWarning`]), a camera whose
+    /// joint RMS exceeds [`MAX_RMS_PX`], an implausible calibrated camera
+    /// ([`ibc_camera_models::Camera::check_plausible`]), an extrinsic whose standard deviation
+    /// exceeds [`MAX_EXTRINSIC_STD_DEG`] or [`MAX_EXTRINSIC_STD_M`], or a joint refinement that
+    /// did not converge. Empty for a calibration to use.
     pub fn warnings(&self) -> Vec<String> {
         let mut out = Vec::new();
         for (name, cal) in self.names.iter().zip(&self.intrinsics) {
@@ -143,6 +162,27 @@ impl TargetCalibration {
             if !(rms.is_finite() && *rms <= MAX_RMS_PX) {
                 out.push(format!(
                     "`{name}`: RMS {rms:.3} px after the joint refinement, above {MAX_RMS_PX} px"
+                ));
+            }
+        }
+        for (c, name) in self.names.iter().enumerate() {
+            if let Err(e) = self.cameras[c].check_plausible() {
+                out.push(format!(
+                    "`{name}`: the calibrated camera is implausible: {e}"
+                ));
+            }
+            if let Some((rotation_deg, translation_m)) = self.extrinsic_std[c]
+                && !(rotation_deg <= MAX_EXTRINSIC_STD_DEG && translation_m <= MAX_EXTRINSIC_STD_M)
+            {
+                out.push(format!(
+                    "`{name}`: the extrinsic is not determined (standard deviation \
+                     {rotation_deg:.3} deg / {:.2} mm, above {MAX_EXTRINSIC_STD_DEG} deg / {} mm): \
+                     more views shared with `{}`, or more rotation of the rig",
+                    translation_m * 1e3,
+                    MAX_EXTRINSIC_STD_M * 1e3,
+                    self.links[c]
+                        .parent
+                        .map_or("the others", |p| self.names[p].as_str()),
                 ));
             }
         }
@@ -249,7 +289,7 @@ pub fn calibrate_rig_from_target(
         })
         .collect();
     // Relative poses of every pair of cameras at the times both saw a board.
-    let mut pair_views: BTreeMap<(usize, usize), Vec<(&str, Isometry3<f64>)>> = BTreeMap::new();
+    let mut pair_views: BTreeMap<(usize, usize), TimedPoses<'_>> = BTreeMap::new();
     for i in 0..n {
         for j in 0..n {
             if i == j {
@@ -542,12 +582,20 @@ pub fn calibrate_rig_from_target(
     })
 }
 
+/// Relative poses of two cameras at the times (image names) both saw a board.
+type TimedPoses<'a> = Vec<(&'a str, Isometry3<f64>)>;
+
 /// Two cameras saw the same board when their relative pose stays within this angle of its
 /// mean over their shared times, degrees (single-image poses scatter by hundredths of a
 /// degree; a rig turning in front of two boards changes it by tens).
 pub const SAME_BOARD_DEG: f64 = 1.0;
 /// ... and within this distance, metres.
 pub const SAME_BOARD_M: f64 = 0.02;
+/// An extrinsic whose rotation standard deviation exceeds this (degrees) is reported as not
+/// determined by the views (a good target calibration reaches a few thousandths).
+pub const MAX_EXTRINSIC_STD_DEG: f64 = 0.1;
+/// ... or whose translation standard deviation exceeds this, metres.
+pub const MAX_EXTRINSIC_STD_M: f64 = 0.002;
 /// Fewest common times for a hand-eye link.
 pub const MIN_HAND_EYE_TIMES: usize = 3;
 

@@ -168,6 +168,14 @@ pub fn report_json(
                 "params": calibration.cameras[c].params(),
                 "param_std": calibration.intrinsic_std[c],
                 "rms_px": calibration.rms_px[c],
+                "per_image": cal.per_image.iter().map(|i| json!({
+                    "name": i.name,
+                    "corners": i.corners,
+                    "status": i.status,
+                    "outliers": i.outliers,
+                    "rms_px": i.rms_px,
+                    "max_px": i.max_px,
+                })).collect::<Vec<_>>(),
                 "rig_from_camera": pose_json(&calibration.rig_from_camera[c]),
                 "extrinsic_std_deg": calibration.extrinsic_std[c].map(|s| s.0),
                 "extrinsic_std_mm": calibration.extrinsic_std[c].map(|s| s.1 * 1e3),
@@ -254,12 +262,24 @@ pub fn write_outputs(
 pub const SIMULATED_SCENES: [&str; 3] = ["stereo", "car", "fisheye"];
 
 /// A built-in scene: `stereo` (two EuRoC-like pinholes 11 cm apart, a board held in front of
-/// them), `car` (four pinholes looking front, left, back and right, each at its own board
-/// standing still while the rig turns) or `fisheye` (one 190-degree Kannala-Brandt camera).
+/// them, 12 views placed in front of each), `car` (four pinholes looking front, left, back
+/// and right, each at its own board standing still while the rig turns: 40 times) or
+/// `fisheye` (one 190-degree Kannala-Brandt camera, 24 views). `views` overrides the number of
+/// views (per camera for `stereo`, times for `car`).
 ///
 /// # Errors
-/// [`TargetError::InvalidInput`] for an unknown scene, and the simulation's errors.
-pub fn simulate_scene(name: &str, seed: u64) -> Result<SimulatedTargetImages, TargetError> {
+/// [`TargetError::InvalidInput`] for an unknown scene or no views, and the simulation's
+/// errors.
+pub fn simulate_scene(
+    name: &str,
+    seed: u64,
+    views: Option<usize>,
+) -> Result<SimulatedTargetImages, TargetError> {
+    if views == Some(0) {
+        return Err(TargetError::InvalidInput(
+            "a scene needs at least one view".into(),
+        ));
+    }
     let grid = AprilGrid::new(6, 6, 0.05, 0.3)?;
     let preset = |m| preset_camera(m).map_err(|e| TargetError::InvalidInput(e.to_string()));
     match name {

@@ -1,7 +1,7 @@
 //! AprilGrid detection in images, with the `aprilgrid` crate's detector (saddle points refined
 //! to sub-pixel, quads grown into a board, tags decoded against tag36h11).
 //!
-//! The detector's tag corners become [`Corner`]s of the grid's [`PlanarTarget`]
+//! The detector's tag corners become [`Corner`]s of the grid's [`PlanarTarget`](crate::intrinsics::PlanarTarget)
 //! ([`AprilGrid::corner_index`]); tags whose id is not on the grid (another target in view)
 //! are dropped and counted. Pixel coordinates have pixel centres at integer coordinates, as
 //! everywhere in ibc.
