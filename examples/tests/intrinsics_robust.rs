@@ -147,18 +147,20 @@ fn a_calibration_the_data_do_not_support_is_poor() {
         "{:?}",
         noisy.warnings
     );
-    // Three views of a small board barely tilted: the focal length is not determined.
+    // Three views of a small board barely tilted (3 to 6 degrees): the focal length is not
+    // determined. (At 8 to 12 degrees Zhang's start fell into a false minimum that was flagged
+    // too; the centred start finds the true one, determined to 0.8 %, within the gate.)
     let options = BoardSimulationOptions {
         views: 3,
-        max_tilt_deg: 12.0,
-        min_tilt_deg: 8.0,
+        max_tilt_deg: 6.0,
+        min_tilt_deg: 3.0,
         noise_px: 0.5,
         ..BoardSimulationOptions::for_model(model)
     };
     let weak = calibrate(&simulated_with(model, 4, 5, &options).corners, model);
     println!(
-        "weak: std {:?}, warnings {:?}",
-        weak.std_devs, weak.warnings
+        "weak: std {:?}, warnings {:?} init {:?} params {:?}",
+        weak.std_devs, weak.warnings, weak.initialization, weak.camera
     );
     assert!(
         weak.warnings

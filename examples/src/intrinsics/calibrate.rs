@@ -158,10 +158,12 @@ pub enum Initialization {
     },
 }
 
-/// A pinhole calibration refined from Zhang's start to an RMS above this (pixels), or a
-/// start that failed, is tried again from the centred start, and the better fit kept: a
-/// detector's noise is 0.05 to 0.5 px.
-pub const PINHOLE_FALLBACK_RMS_PX: f64 = 0.5;
+/// A pinhole calibration refined from Zhang's start to an RMS above this (pixels, the RMS
+/// gate [`MAX_RMS_PX`]), or whose closed form has no solution, is tried again from the
+/// centred start; the centred fit is kept when its RMS is below half the other's (a false
+/// minimum, not noisy corners, which no start fits better). Views that Zhang's constraints
+/// find degenerate stay an error: no start determines the focal length then.
+pub const PINHOLE_FALLBACK_RMS_PX: f64 = MAX_RMS_PX;
 
 /// What became of an input image.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
@@ -490,10 +492,7 @@ pub fn calibrate_intrinsics(
                 init.camera_from_board,
                 Initialization::Zhang(init.zhang),
             ),
-            Err(
-                zhang @ (IntrinsicsError::DegenerateViews { .. }
-                | IntrinsicsError::Initialization(_)),
-            ) => centred().map_err(|_| zhang)?,
+            Err(zhang @ IntrinsicsError::Initialization(_)) => centred().map_err(|_| zhang)?,
             Err(e) => return Err(e),
         },
     };
@@ -541,7 +540,9 @@ pub fn calibrate_intrinsics(
         start.copy_from_slice(camera.params());
         if let Ok(alternative) =
             robust_refine(model, (w, h), &start, &poses, &data, &options.solver)
-            && robust.as_ref().map_or(true, |r| fit(&alternative) < fit(r))
+            && robust
+                .as_ref()
+                .map_or(true, |r| fit(&alternative) < 0.5 * fit(r))
         {
             initial_rms_px = residual_stats(&camera, &poses, &data, None).0;
             initialization = init;

@@ -14,11 +14,12 @@
 //!   division model ([`division_model`], Fitzgibbon, CVPR 2001), a homography per image
 //!   ([`homography`]), Zhang's closed form for `fx, fy, cx, cy` and his linear `k1, k2`
 //!   ([`zhang`], TPAMI 2000), alternated; `p1 = p2 = 0`. When that start refines to an RMS
-//!   above [`PINHOLE_FALLBACK_RMS_PX`] or has no solution (views that differ little in
-//!   orientation, boards partly outside the image: a rig turning in front of a board standing
-//!   still), the calibration is run again from a centred start (principal point at the image
-//!   centre, one focal length from the homographies, [`pinhole_init::centred_initialization`])
-//!   and the better fit kept.
+//!   above [`PINHOLE_FALLBACK_RMS_PX`] or the closed form has no solution (views that differ
+//!   little in orientation, boards partly outside the image: a rig turning in front of a board
+//!   standing still ended 1-3 px off with principal points hundreds of pixels away), the
+//!   calibration is run again from a centred start (principal point at the image centre, one
+//!   focal length from the homographies, [`pinhole_init::centred_initialization`]) and kept
+//!   when it fits at least twice as well.
 //! - **Refinement** (both): Levenberg-Marquardt over the 8 intrinsics and every
 //!   `camera_from_board` with `ibc-bundle-adjust` (poses eliminated by the Schur complement)
 //!   and the analytic intrinsic Jacobians of `ibc-camera-models`. The parameter covariance is

@@ -51,6 +51,21 @@ pub struct PinholeInitialization {
     pub camera_from_board: Vec<Isometry3<f64>>,
 }
 
+/// Pixels of every image, one list per image.
+type ImagePixels = Vec<Vec<Vector2<f64>>>;
+
+/// Every image's board points and pixels, the raw pixels, and the pixels straightened by the
+/// division model with its `lambda` (steps 1 of both starts).
+fn straightened_corners(
+    corners: &CornerSet,
+    target: &PlanarTarget,
+) -> (Correspondences, ImagePixels, f64, ImagePixels) {
+    let data = all_correspondences(target, corners);
+    let raw: Vec<Vec<Vector2<f64>>> = data.iter().map(|(_, px)| px.clone()).collect();
+    let (division_lambda, straightened) = division_undistorted(&data, corners);
+    (data, raw, division_lambda, straightened)
+}
+
 /// Board poses of every image for a camera, from `pixels` (one list per image).
 fn all_board_poses(
     camera: &Camera,
@@ -177,9 +192,7 @@ pub fn pinhole_initialization(
     corners: &CornerSet,
     target: &PlanarTarget,
 ) -> Result<PinholeInitialization, IntrinsicsError> {
-    let data = all_correspondences(target, corners);
-    let raw: Vec<Vec<Vector2<f64>>> = data.iter().map(|(_, px)| px.clone()).collect();
-    let (division_lambda, straightened) = division_undistorted(&data, corners);
+    let (data, raw, division_lambda, straightened) = straightened_corners(corners, target);
     let zhang = closed_form(&data, &straightened, corners)?;
     let (w, h) = (corners.width, corners.height);
     let mut k = zhang;
@@ -244,9 +257,7 @@ pub fn centred_initialization(
     corners: &CornerSet,
     target: &PlanarTarget,
 ) -> Result<PinholeInitialization, IntrinsicsError> {
-    let data = all_correspondences(target, corners);
-    let raw: Vec<Vec<Vector2<f64>>> = data.iter().map(|(_, px)| px.clone()).collect();
-    let (division_lambda, straightened) = division_undistorted(&data, corners);
+    let (data, raw, division_lambda, straightened) = straightened_corners(corners, target);
     let (w, h) = (corners.width, corners.height);
     let (cx, cy) = (0.5 * f64::from(w) - 0.5, 0.5 * f64::from(h) - 0.5);
     let (mut aa, mut ab) = (0.0, 0.0);

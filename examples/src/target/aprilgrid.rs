@@ -306,7 +306,8 @@ mod tests {
         );
         let t = g.planar_target();
         assert_eq!((t.rows, t.cols), (10, 12));
-        assert_eq!(g.corner_index(7, 2), Some((3, 4)));
+        assert_eq!(g.corner_index(7, 2), Some((3, 3)));
+        assert_eq!(g.corner_index(8, 1), Some((2, 5)));
         assert_eq!(g.corner_index(30, 0), None);
     }
 

@@ -143,9 +143,7 @@ pub fn simulate_target_images(
     let target = grid.planar_target();
     let height = target.coordinate(target.rows - 1);
     let total = n * options.views_per_camera;
-    let mut times = Vec::with_capacity(total);
-    let mut poses: Vec<Vec<Option<Isometry3<f64>>>> = vec![Vec::with_capacity(total); n];
-    let mut images: Vec<Vec<Option<GrayImage>>> = vec![Vec::with_capacity(total); n];
+    let mut rendered = Rendering::new(rig, grid);
     for t in 0..total {
         let c = t % n;
         let camera: &Camera = &rig.cameras[c].camera;
@@ -167,28 +165,52 @@ pub fn simulate_target_images(
             )));
         };
         let board = rig.cameras[c].rig_from_camera * facing(pose, height);
-        for (j, rc) in rig.cameras.iter().enumerate() {
-            let camera_from_board = rc.rig_from_camera.inverse() * board;
-            let image = render_if_seen(
-                rc,
-                &camera_from_board,
-                grid,
-                &options.render,
-                options.seed,
-                t * n + j,
-            )?;
-            poses[j].push(image.is_some().then_some(camera_from_board));
-            images[j].push(image);
-        }
-        times.push(format!("t{t:04}"));
+        rendered.add_time(&options.render, options.seed, |_, rc| {
+            rc.rig_from_camera.inverse() * board
+        })?;
     }
-    Ok(SimulatedTargetImages {
-        rig: rig.clone(),
-        grid: *grid,
-        times,
-        camera_from_board: poses,
-        images,
-    })
+    Ok(rendered.images)
+}
+
+/// The images of a simulation as they are rendered, time after time.
+struct Rendering<'a> {
+    images: SimulatedTargetImages,
+    rig: &'a Rig,
+}
+
+impl<'a> Rendering<'a> {
+    fn new(rig: &'a Rig, grid: &AprilGrid) -> Self {
+        let n = rig.cameras.len();
+        Self {
+            images: SimulatedTargetImages {
+                rig: rig.clone(),
+                grid: *grid,
+                times: Vec::new(),
+                camera_from_board: vec![Vec::new(); n],
+                images: vec![Vec::new(); n],
+            },
+            rig,
+        }
+    }
+
+    /// Renders the next time: camera `j` sees its board at `camera_from_board(j, camera)`.
+    fn add_time(
+        &mut self,
+        render: &RenderOptions,
+        seed: u64,
+        camera_from_board: impl Fn(usize, &RigCamera) -> Isometry3<f64>,
+    ) -> Result<(), TargetError> {
+        let t = self.images.times.len();
+        let n = self.rig.cameras.len();
+        for (j, rc) in self.rig.cameras.iter().enumerate() {
+            let pose = camera_from_board(j, rc);
+            let image = render_if_seen(rc, &pose, &self.images.grid, render, seed, t * n + j)?;
+            self.images.camera_from_board[j].push(image.is_some().then_some(pose));
+            self.images.images[j].push(image);
+        }
+        self.images.times.push(format!("t{t:04}"));
+        Ok(())
+    }
 }
 
 /// The image of `grid` at `camera_from_board` in `camera` if the camera sees the printed face
@@ -303,37 +325,18 @@ pub fn simulate_static_boards(
             c.rig_from_camera * Isometry3::from_parts(translation.into(), rotation)
         })
         .collect();
-    let mut times = Vec::with_capacity(options.times);
-    let mut poses: Vec<Vec<Option<Isometry3<f64>>>> = vec![Vec::with_capacity(options.times); n];
-    let mut images: Vec<Vec<Option<GrayImage>>> = vec![Vec::with_capacity(options.times); n];
-    for t in 0..options.times {
+    let mut rendered = Rendering::new(rig, grid);
+    for _ in 0..options.times {
         let angle = options.max_rotation_deg.to_radians() * rng.random::<f64>();
         let rotation = UnitQuaternion::from_scaled_axis(random_unit(&mut rng) * angle);
         let shift =
             Vector3::from_fn(|_, _| (2.0 * rng.random::<f64>() - 1.0) * options.max_translation_m);
         let world_from_rig = Isometry3::from_parts(shift.into(), rotation);
-        for (j, rc) in rig.cameras.iter().enumerate() {
-            let camera_from_board = (world_from_rig * rc.rig_from_camera).inverse() * boards[j];
-            let image = render_if_seen(
-                rc,
-                &camera_from_board,
-                grid,
-                &options.render,
-                options.seed,
-                t * n + j,
-            )?;
-            poses[j].push(image.is_some().then_some(camera_from_board));
-            images[j].push(image);
-        }
-        times.push(format!("t{t:04}"));
+        rendered.add_time(&options.render, options.seed, |j, rc| {
+            (world_from_rig * rc.rig_from_camera).inverse() * boards[j]
+        })?;
     }
-    Ok(SimulatedTargetImages {
-        rig: rig.clone(),
-        grid: *grid,
-        times,
-        camera_from_board: poses,
-        images,
-    })
+    Ok(rendered.images)
 }
 
 /// A random unit vector (uniform on the sphere).
