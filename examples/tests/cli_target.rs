@@ -84,10 +84,16 @@ fn a_rendered_stereo_pair_is_calibrated_from_its_image_folders() {
             "camchain.yaml",
             "left_camera_calib.yaml",
             "left_residuals.svg",
+            "rig_top_view.svg",
             "right_camera_calib.yaml",
             "right_residuals.svg",
             "target_report.json"
         ]
+    );
+    let top = std::fs::read_to_string(out.join("rig_top_view.svg")).unwrap();
+    assert!(
+        top.starts_with("<svg") && top.contains("right (std"),
+        "{top}"
     );
     // The camchain says which cameras overlap and reads back.
     let chain = Rig::read_kalibr(out.join("camchain.yaml")).unwrap();

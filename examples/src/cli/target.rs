@@ -23,8 +23,8 @@ use ibc_pipeline::calib::Progress;
 /// the same file name), or the images directly in --images for one camera. Cameras that see
 /// the board at the same time are linked by their shared views; cameras that never do, by
 /// the rig's motion while each sees its own board standing still. Writes `camchain.yaml`
-/// (Kalibr), `<camera>_camera_calib.yaml` (CamOdoCal), `<camera>_residuals.svg` and
-/// `target_report.json` into --out.
+/// (Kalibr), `<camera>_camera_calib.yaml` (CamOdoCal), `<camera>_residuals.svg`,
+/// `rig_top_view.svg` and `target_report.json` into --out.
 #[derive(Debug, Clone, Args)]
 pub struct TargetArgs {
     /// The image folder (one subfolder per camera). Required unless --simulate.
@@ -114,7 +114,7 @@ pub fn run(args: &TargetArgs) -> Result<Outcome, CliError> {
     } else if !args.quiet {
         super::print(&summary(&report))?;
         super::print(&format!(
-            "wrote {} (and the camchain, CamOdoCal files, residual plots)\n",
+            "wrote {} (and the camchain, CamOdoCal files, residual plots, top view)\n",
             args.out.join(REPORT_FILE).display()
         ))?;
     }

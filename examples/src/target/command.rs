@@ -1,12 +1,12 @@
 //! `ibc target`: a rig calibrated from image folders of an AprilGrid, its outputs (Kalibr
 //! camchain with `rostopic` and `cam_overlaps`, CamOdoCal files, a JSON report, per-camera
-//! residual plots), written all or nothing; and the built-in simulated scenes that exercise
-//! it from pixels.
+//! residual plots, a top view of the rig), written all or nothing; and the built-in
+//! simulated scenes that exercise it from pixels.
 
 use std::path::{Path, PathBuf};
 
 use ibc_camera_models::{CameraModel, Rig, RigCamera, camodocal};
-use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
+use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector2, Vector3};
 use serde_json::{Value, json};
 
 use super::aprilgrid::AprilGrid;
@@ -23,11 +23,14 @@ use crate::data::io::StagedFiles;
 use crate::intrinsics::IntrinsicModel;
 use crate::intrinsics::simulate::preset_camera;
 use crate::intrinsics::svg::residual_svg;
+use crate::report::plot::{Axes, Svg, colour};
 
 /// File name of the Kalibr camchain.
 pub const CAMCHAIN_FILE: &str = "camchain.yaml";
 /// File name of the JSON report.
 pub const REPORT_FILE: &str = "target_report.json";
+/// File name of the rig's top view.
+pub const TOP_VIEW_FILE: &str = "rig_top_view.svg";
 /// The report's `format`.
 pub const REPORT_FORMAT: &str = "ibc-target-report";
 
@@ -219,7 +222,7 @@ pub fn report_json(
 }
 
 /// Writes `camchain.yaml`, one `<name>_camera_calib.yaml` and one `<name>_residuals.svg` per
-/// camera and `target_report.json` into `dir`, all or nothing.
+/// camera, `rig_top_view.svg` and `target_report.json` into `dir`, all or nothing.
 ///
 /// # Errors
 /// [`TargetError::Image`] naming the folder or file that could not be written.
@@ -253,9 +256,67 @@ pub fn write_outputs(
             residual_svg(&calibration.intrinsics[c], &calibration.used_corners[c]).as_bytes(),
         )?;
     }
+    stage(
+        TOP_VIEW_FILE.into(),
+        rig_top_view_svg(calibration).as_bytes(),
+    )?;
     let text = serde_json::to_string_pretty(report).unwrap_or_default();
     stage(REPORT_FILE.into(), text.as_bytes())?;
     staged.commit().map_err(|e| io(dir, e.to_string()))
+}
+
+/// The rig seen from above: each camera's centre and optical axis on the reference camera's
+/// `x` (right) and `z` (forward) axes, which are horizontal when the reference camera was
+/// held level (its `y` axis points down), with each camera's name and the standard deviation
+/// of its extrinsic.
+pub fn rig_top_view_svg(calibration: &TargetCalibration) -> String {
+    let (side, left, top) = (520.0, 70.0, 50.0);
+    let mut svg = Svg::new(left + side + 40.0, top + side + 60.0);
+    let plane = |v: &Vector3<f64>| Vector2::new(v.x, v.z);
+    let centres: Vec<Vector2<f64>> = calibration
+        .rig_from_camera
+        .iter()
+        .map(|p| plane(&p.translation.vector))
+        .collect();
+    let (mut lo, mut hi) = (Vector2::repeat(-0.05), Vector2::repeat(0.05));
+    for c in &centres {
+        lo = lo.inf(c);
+        hi = hi.sup(c);
+    }
+    let span = (hi - lo).max();
+    let (lo, hi) = (
+        lo - Vector2::repeat(0.2 * span),
+        hi + Vector2::repeat(0.2 * span),
+    );
+    let axes = Axes::equal(Vector2::new(left, top), side, lo, hi);
+    axes.draw(
+        &mut svg,
+        "x (m), right of the reference camera",
+        "z (m), forward",
+    );
+    svg.text(
+        Vector2::new(left, 25.0),
+        "start",
+        "#222",
+        "top view of the rig: camera centres and optical axes (reference camera's frame)",
+    );
+    for (c, (pose, centre)) in calibration.rig_from_camera.iter().zip(&centres).enumerate() {
+        let axis = plane(&(pose.rotation * Vector3::z()));
+        let tip = centre + axis.try_normalize(1e-9).unwrap_or_default() * 0.12 * span.max(0.1);
+        let (a, b) = (axes.map(*centre), axes.map(tip));
+        svg.line(a, b, colour(c), 2.0);
+        svg.circle(a, 4.0, colour(c));
+        let label = match calibration.extrinsic_std[c] {
+            Some((r, t)) => format!(
+                "{} (std {r:.3} deg, {:.2} mm)",
+                calibration.names[c],
+                t * 1e3
+            ),
+            None => format!("{} (reference)", calibration.names[c]),
+        };
+        svg.text(a + Vector2::new(6.0, -6.0), "start", colour(c), &label);
+    }
+    svg.finish()
 }
 
 /// The built-in simulated scenes of `ibc target --simulate`.
