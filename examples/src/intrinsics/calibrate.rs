@@ -528,12 +528,12 @@ pub fn calibrate_intrinsics(
                 residual_stats(&c, &r.refined.camera_from_board, &data, Some(&r.inliers)).0
             })
     };
-    let poor = robust
-        .as_ref()
-        .map_or(true, |r| fit(r) > PINHOLE_FALLBACK_RMS_PX);
+    // Only a pinhole from Zhang's start gets the second start (a KB fit is never re-scored).
     if model == IntrinsicModel::PinholeRadtan
-        && poor
         && !matches!(initialization, Initialization::CentredFocal { .. })
+        && robust
+            .as_ref()
+            .map_or(true, |r| fit(r) > PINHOLE_FALLBACK_RMS_PX)
         && let Ok((camera, poses, init)) = centred()
     {
         let mut start = [0.0; 8];
