@@ -33,6 +33,27 @@ fn detection(c: &mut Criterion) {
     g.bench_function("detect_aprilgrid_752x480", |b| {
         b.iter(|| one.install(|| detect_april_grid(black_box(&image), &sim.grid, "bench").unwrap()))
     });
+    // The left camera's 24 views of the stereo scene: boards near and far, whole and cut by
+    // the image border (the single image above is among the slowest of them).
+    let views = simulate_scene("stereo", 1, Some(24)).unwrap();
+    let left: Vec<_> = views.images[0].iter().flatten().cloned().collect();
+    g.bench_function(
+        format!("detect_aprilgrid_752x480_{}_views", left.len()),
+        |b| {
+            b.iter(|| {
+                one.install(|| {
+                    left.iter()
+                        .map(|i| {
+                            detect_april_grid(black_box(i), &views.grid, "bench")
+                                .unwrap()
+                                .corners
+                                .len()
+                        })
+                        .sum::<usize>()
+                })
+            })
+        },
+    );
     g.finish();
 }
 

@@ -156,9 +156,9 @@ fn malformed_corner_files_fail_with_one_line_and_no_output() {
 
 #[test]
 fn usage_errors_exit_with_code_2() {
-    let run = ibc(&["--simulate", "--model", "mei", "--out", "x"]);
+    let run = ibc(&["--simulate", "--model", "fisheye", "--out", "x"]);
     assert_eq!(run.status.code(), Some(2));
-    assert!(String::from_utf8_lossy(&run.stderr).contains("left out"));
+    assert!(String::from_utf8_lossy(&run.stderr).contains("unknown model `fisheye`"));
     let run = ibc(&["--out", "x"]);
     assert_eq!(run.status.code(), Some(2));
 }

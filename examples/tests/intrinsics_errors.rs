@@ -1,6 +1,6 @@
 //! Bad input to `calibrate_intrinsics` gives typed errors, never a wrong calibration or a
 //! panic: degenerate views, too few images or corners, corners outside the image or off the
-//! board, malformed corner files, an unsupported model.
+//! board, malformed corner files, an unknown model.
 
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
@@ -13,7 +13,11 @@ use ibc_pipeline::intrinsics::{
 };
 use intrinsics_common::{simulated, simulated_with};
 
-const MODELS: [IntrinsicModel; 2] = [IntrinsicModel::KannalaBrandt, IntrinsicModel::PinholeRadtan];
+const MODELS: [IntrinsicModel; 3] = [
+    IntrinsicModel::KannalaBrandt,
+    IntrinsicModel::PinholeRadtan,
+    IntrinsicModel::Unified,
+];
 
 fn run(corners: &CornerSet, model: IntrinsicModel) -> Result<(), IntrinsicsError> {
     let target = corners.board.unwrap();
@@ -130,17 +134,19 @@ fn corner_files_round_trip_and_malformed_ones_are_named() {
 }
 
 #[test]
-fn the_unified_model_is_refused_by_name() {
-    for name in ["mei", "unified"] {
-        let err = name.parse::<IntrinsicModel>().unwrap_err();
-        assert!(err.to_string().contains("left out"), "{err}");
+fn models_are_parsed_by_name_and_an_unknown_one_is_refused() {
+    for (name, model) in [
+        ("kb", IntrinsicModel::KannalaBrandt),
+        ("pinhole", IntrinsicModel::PinholeRadtan),
+        ("mei", IntrinsicModel::Unified),
+        ("unified", IntrinsicModel::Unified),
+        ("omni", IntrinsicModel::Unified),
+    ] {
+        assert_eq!(name.parse::<IntrinsicModel>().unwrap(), model);
     }
-    assert_eq!(
-        "kb".parse::<IntrinsicModel>().unwrap(),
-        IntrinsicModel::KannalaBrandt
-    );
-    assert_eq!(
-        "pinhole".parse::<IntrinsicModel>().unwrap(),
-        IntrinsicModel::PinholeRadtan
+    let err = "fisheye".parse::<IntrinsicModel>().unwrap_err();
+    assert!(
+        matches!(err, IntrinsicsError::InvalidInput(_)) && err.to_string().contains("`fisheye`"),
+        "{err}"
     );
 }

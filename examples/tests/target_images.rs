@@ -1,13 +1,17 @@
 #![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)]
 //! Calibration from rendered AprilGrid images (issue 20): detection against the rendered
-//! truth, intrinsics from pixels for a pinhole and a 190-degree fisheye, the extrinsics of a
-//! stereo pair from shared views, and bad input.
+//! truth, intrinsics from pixels for a pinhole, a 190-degree Kannala-Brandt fisheye and a
+//! unified (Mei) fisheye, the extrinsics of a stereo pair from shared views, and bad input.
 
-use ibc_pipeline::ibc_camera_models::{Camera, CameraModel, Rig, RigCamera};
+use ibc_pipeline::ibc_camera_models::{CameraModel, Rig, RigCamera};
 use ibc_pipeline::intrinsics::simulate::preset_camera;
 use ibc_pipeline::intrinsics::{IntrinsicModel, IntrinsicsOptions, calibrate_intrinsics};
-use ibc_pipeline::nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector2, Vector3};
+use ibc_pipeline::nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
+use ibc_pipeline::target::command::simulate_scene;
 use ibc_pipeline::target::*;
+use intrinsics_common::max_projection_difference;
+
+mod intrinsics_common;
 
 /// Kalibr's default grid shrunk to a hand-held size: 6 x 6 tags of 5 cm, 0.3 apart.
 fn grid() -> AprilGrid {
@@ -42,16 +46,30 @@ fn median(mut v: Vec<f64>) -> f64 {
     v[v.len() / 2]
 }
 
+/// Detection against the rendered truth, also on grids whose tag spacing is not Kalibr's
+/// default 0.3 (the board is grown with the grid's own ratio).
 #[test]
 fn rendered_corners_are_detected_within_a_tenth_of_a_pixel() {
-    for model in [IntrinsicModel::PinholeRadtan, IntrinsicModel::KannalaBrandt] {
+    for (model, grid) in [
+        (IntrinsicModel::PinholeRadtan, grid()),
+        (IntrinsicModel::KannalaBrandt, grid()),
+        (
+            IntrinsicModel::PinholeRadtan,
+            AprilGrid::new(6, 6, 0.05, 0.2).unwrap(),
+        ),
+        (
+            IntrinsicModel::PinholeRadtan,
+            AprilGrid::new(6, 6, 0.05, 0.5).unwrap(),
+        ),
+    ] {
+        let model_spacing = format!("{model:?}, spacing {}", grid.tag_spacing);
         let rig = single(model);
         let options = TargetSimulationOptions {
             views_per_camera: 6,
             seed: 11,
             ..Default::default()
         };
-        let sim = simulate_target_images(&rig, &grid(), &options).unwrap();
+        let sim = simulate_target_images(&rig, &grid, &options).unwrap();
         let target = sim.grid.planar_target();
         let camera = &rig.cameras[0].camera;
         let (mut errors, mut truth_count) = (Vec::new(), 0);
@@ -62,7 +80,7 @@ fn rendered_corners_are_detected_within_a_tenth_of_a_pixel() {
             for c in &detection.corners {
                 let tc = truth.iter().find(|tc| (tc.row, tc.col) == (c.row, c.col));
                 // A corner the detector returns must be the one it names (no swapped ids).
-                let tc = tc.unwrap_or_else(|| panic!("{model:?}: corner {c:?} not in view"));
+                let tc = tc.unwrap_or_else(|| panic!("{model_spacing}: corner {c:?} not in view"));
                 errors.push((tc.pixel() - c.pixel()).norm());
             }
             assert_eq!(detection.foreign_tags, 0);
@@ -71,12 +89,13 @@ fn rendered_corners_are_detected_within_a_tenth_of_a_pixel() {
         let med = median(errors.clone());
         let max = errors.iter().copied().fold(0.0, f64::max);
         println!(
-            "{model:?}: {} of {truth_count} corners found, median error {med:.3} px, max {max:.3} px",
+            "{model_spacing}: {} of {truth_count} corners found, median error {med:.3} px, max \
+             {max:.3} px",
             errors.len()
         );
-        assert!(med < 0.1, "{model:?}: median {med}");
-        assert!(max < 0.5, "{model:?}: max {max}");
-        assert!(found > 0.7, "{model:?}: found {found}");
+        assert!(med < 0.1, "{model_spacing}: median {med}");
+        assert!(max < 0.5, "{model_spacing}: max {max}");
+        assert!(found > 0.7, "{model_spacing}: found {found}");
     }
 }
 
@@ -97,46 +116,29 @@ fn corner_set(sim: &SimulatedTargetImages, camera: usize) -> ibc_pipeline::intri
     }
 }
 
-/// Largest pixel difference between two cameras over a grid of pixels of `truth`'s image
-/// (each pixel unprojected by `truth`, projected by `estimate`), where `truth` sees within
-/// `max_deg` of its axis.
-fn max_projection_difference(truth: &Camera, estimate: &Camera, max_deg: f64) -> f64 {
-    let mut worst: f64 = 0.0;
-    for i in 0..=32 {
-        for j in 0..=24 {
-            let px = Vector2::new(
-                f64::from(i) / 32.0 * f64::from(truth.width() - 1),
-                f64::from(j) / 24.0 * f64::from(truth.height() - 1),
-            );
-            let Ok(ray) = truth.unproject(&px) else {
-                continue;
-            };
-            if ray.z.clamp(-1.0, 1.0).acos().to_degrees() > max_deg {
-                continue;
-            }
-            if let Ok(p) = estimate.project(&ray.into_inner()) {
-                worst = worst.max((p - px).norm());
-            }
-        }
-    }
-    worst
-}
-
 #[test]
 fn intrinsics_from_rendered_images_are_within_a_tenth_of_a_pixel() {
     for (model, max_deg) in [
         (IntrinsicModel::PinholeRadtan, 90.0),
         (IntrinsicModel::KannalaBrandt, 80.0),
+        (IntrinsicModel::Unified, 80.0),
     ] {
         let rig = single(model);
         let options = TargetSimulationOptions {
-            views_per_camera: 24,
+            // The unified model's xi, gamma and k1 trade off against each other: from the
+            // same 24 views its projection differed from the truth by up to 0.114 px within
+            // 80 degrees (the other models 0.02-0.06 px); 40 views bring it to 0.061 px.
+            views_per_camera: if model == IntrinsicModel::Unified {
+                40
+            } else {
+                24
+            },
             seed: 5,
             placement: ibc_pipeline::intrinsics::simulate::BoardSimulationOptions {
-                max_incidence_deg: Some(if model == IntrinsicModel::KannalaBrandt {
-                    85.0
-                } else {
+                max_incidence_deg: Some(if model == IntrinsicModel::PinholeRadtan {
                     90.0
+                } else {
+                    85.0
                 }),
                 ..TargetSimulationOptions::default().placement
             },
@@ -149,19 +151,29 @@ fn intrinsics_from_rendered_images_are_within_a_tenth_of_a_pixel() {
             calibrate_intrinsics(&corners, &target, model, &IntrinsicsOptions::default()).unwrap();
         let truth = &rig.cameras[0].camera;
         let (t, e) = (truth.params(), cal.camera.params());
-        let f_err = (e[4] - t[4]).abs().max((e[5] - t[5]).abs());
-        let c_err = (e[6] - t[6]).abs().max((e[7] - t[7]).abs());
+        // Every model keeps [.., fx, fy, cx, cy] last.
+        let f = t.len() - 4;
+        let f_err = (e[f] - t[f]).abs().max((e[f + 1] - t[f + 1]).abs());
+        let c_err = (e[f + 2] - t[f + 2]).abs().max((e[f + 3] - t[f + 3]).abs());
         let field = max_projection_difference(truth, &cal.camera, max_deg);
         println!(
             "{model:?}: {} images, rms {:.3} px, focal error {f_err:.3} px, centre error {c_err:.3} px, \
              largest projection difference within {max_deg} deg {field:.3} px, std f {:.3} c {:.3}",
             corners.images.len(),
             cal.rms_px,
-            cal.std_devs[4],
-            cal.std_devs[6]
+            cal.std_devs[f],
+            cal.std_devs[f + 2]
         );
         assert!(cal.warnings.is_empty(), "{:?}", cal.warnings);
-        assert!(f_err < 0.1 && c_err < 0.1, "{model:?}: {f_err} {c_err}");
+        assert!(c_err < 0.1, "{model:?}: {c_err}");
+        // The unified model's gamma trades off against xi (standard deviation well above
+        // 0.1 px, see intrinsics_accuracy.rs): its bar is the projection below, and gamma
+        // within 4 standard deviations.
+        if model == IntrinsicModel::Unified {
+            assert!(f_err < 4.0 * cal.std_devs[f], "{model:?}: {f_err}");
+        } else {
+            assert!(f_err < 0.1, "{model:?}: {f_err}");
+        }
         assert!(field < 0.1, "{model:?}: {field}");
     }
 }
@@ -327,24 +339,31 @@ fn cameras_that_never_share_a_view_are_calibrated_from_the_rigs_motion() {
     assert!(rot < 0.01 && trans < 0.5e-3, "{rot} deg {trans} m");
 }
 
+/// The same image gives the same corners on every call. The detection crate's own entry point
+/// chose its start orientation by hash-map order, so on these fisheye views one image gave 24
+/// corners in one run and 72 in another (a test of four Kannala-Brandt views here had passed
+/// by luck); the detection composed in `ibc` orders every choice.
 #[test]
-fn detection_is_repeatable() {
-    // The detector's board search walks hash maps; the corners it returns must not depend on
-    // their order.
-    let sim = simulate_target_images(
-        &single(IntrinsicModel::KannalaBrandt),
-        &grid(),
-        &TargetSimulationOptions {
-            views_per_camera: 4,
-            seed: 2,
-            ..Default::default()
-        },
-    )
-    .unwrap();
-    for image in sim.images[0].iter().flatten() {
-        let first = detect_april_grid(image, &sim.grid, "a").unwrap();
-        for _ in 0..10 {
-            assert_eq!(detect_april_grid(image, &sim.grid, "a").unwrap(), first);
+fn detection_gives_the_same_corners_every_time() {
+    let sim = simulate_scene("mei", 0, None).unwrap();
+    let images: Vec<_> = sim.images[0].iter().flatten().collect();
+    assert!(images.len() >= 30, "{}", images.len());
+    let mut found = 0;
+    for (k, image) in images.iter().enumerate() {
+        let first = detect_april_grid(image, &sim.grid, "view").unwrap();
+        for _ in 0..3 {
+            assert_eq!(
+                detect_april_grid(image, &sim.grid, "view").unwrap(),
+                first,
+                "view {k}"
+            );
         }
+        found += first.corners.len();
     }
+    // Most views see most of the board (6 x 6 tags, 144 corners).
+    assert!(
+        found > 60 * images.len(),
+        "{found} corners in {} views",
+        images.len()
+    );
 }

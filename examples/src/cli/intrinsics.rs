@@ -23,9 +23,9 @@ pub struct IntrinsicsArgs {
     /// `intrinsics`). Required unless --simulate.
     #[arg(long, value_name = "FILE", required_unless_present = "simulate")]
     pub corners: Option<PathBuf>,
-    /// The camera model: `kb` (Kannala-Brandt, for fisheyes) or `pinhole` (pinhole with
-    /// radial-tangential distortion).
-    #[arg(long, value_name = "kb|pinhole", default_value = "kb", value_parser = parse_model)]
+    /// The camera model: `kb` (Kannala-Brandt, for fisheyes), `pinhole` (pinhole with
+    /// radial-tangential distortion) or `mei` (unified, Kalibr's `omni` + `radtan`).
+    #[arg(long, value_name = "kb|pinhole|mei", default_value = "kb", value_parser = parse_model)]
     pub model: IntrinsicModel,
     /// The board as ROWSxCOLS inner corners, e.g. 6x9 (default: the corner file's board, or
     /// 6x9 when simulating).

@@ -34,7 +34,7 @@ pub struct TargetArgs {
     /// tagSpacing). Required unless --simulate.
     #[arg(long, value_name = "FILE", required_unless_present = "simulate")]
     pub target: Option<PathBuf>,
-    /// The camera model: `kb` or `pinhole` for every camera, or per camera folder
+    /// The camera model: `kb`, `pinhole` or `mei` for every camera, or per camera folder
     /// (`cam0=kb,cam1=pinhole`).
     #[arg(long, value_name = "MODEL|NAME=MODEL,...", default_value = "pinhole")]
     pub model: String,
@@ -48,7 +48,8 @@ pub struct TargetArgs {
     #[arg(long)]
     pub quiet: bool,
     /// Render a built-in scene's images first (`stereo`, `car`: four cameras that never share
-    /// a view, `fisheye`: a 190-degree lens) into `--out/images`, with the target file and
+    /// a view, `fisheye`: a 190-degree Kannala-Brandt lens, `mei`: the same field with the
+    /// unified model) into `--out/images`, with the target file and
     /// the true rig (`truth_camchain.yaml`), then calibrate them and compare with the truth.
     #[arg(long, value_name = "SCENE", conflicts_with_all = ["images", "target"])]
     pub simulate: Option<String>,
@@ -138,15 +139,23 @@ fn summary(report: &serde_json::Value) -> String {
         report["status"].as_str().unwrap_or("?")
     ));
     for c in &cameras {
-        let p = |k: usize| c["params"][k].as_f64().unwrap_or(f64::NAN);
+        // Every model keeps its focal lengths and principal point last: [.., fx, fy, cx, cy].
+        let params = c["params"].as_array().cloned().unwrap_or_default();
+        let p = |k: usize| {
+            params
+                .len()
+                .checked_sub(4 - k)
+                .and_then(|i| params[i].as_f64())
+                .unwrap_or(f64::NAN)
+        };
         let mut line = format!(
-            "  {:<8} {:<7} fx {:.2} fy {:.2} cx {:.2} cy {:.2}  rms {:.3} px  {} images, linked by {}",
+            "  {:<8} {:<7} f {:.2} {:.2} c {:.2} {:.2}  rms {:.3} px  {} images, linked by {}",
             c["name"].as_str().unwrap_or("?"),
             c["model"].as_str().unwrap_or("?"),
-            p(4),
-            p(5),
-            p(6),
-            p(7),
+            p(0),
+            p(1),
+            p(2),
+            p(3),
             c["rms_px"].as_f64().unwrap_or(f64::NAN),
             c["images_with_target"],
             c["linked_by"].as_str().unwrap_or("?"),

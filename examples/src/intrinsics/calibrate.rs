@@ -4,14 +4,17 @@
 use std::str::FromStr;
 
 use ibc_bundle_adjust::{SolverOptions, Termination};
-use ibc_camera_models::{Camera, CameraModel, KannalaBrandt, ParameterError, PinholeRadtan};
-use nalgebra::{Isometry3, SMatrix, Vector2};
+use ibc_camera_models::{
+    Camera, CameraModel, KannalaBrandt, ParameterError, PinholeRadtan, Unified,
+};
+use nalgebra::{DMatrix, Isometry3, Vector2};
 use serde::{Deserialize, Serialize};
 
 use super::board_pose::{ImageCorrespondences, all_correspondences};
 use super::corners::{CornerSet, ImageCorners};
 use super::error::IntrinsicsError;
 use super::kb_init::{FocalHypothesis, KbInitOptions, kannala_brandt_initialization};
+use super::mei_init::unified_initialization;
 use super::pinhole_init::{centred_initialization, pinhole_initialization};
 use super::robust::{RobustRefined, robust_refine};
 use super::target::PlanarTarget;
@@ -38,26 +41,36 @@ pub enum IntrinsicModel {
     KannalaBrandt,
     /// [`PinholeRadtan`], initialized by Zhang's closed form.
     PinholeRadtan,
+    /// [`Unified`] (Mei), initialized from the line conics of the parabolic case
+    /// ([`super::mei_init`]).
+    Unified,
 }
 
 impl IntrinsicModel {
-    /// The command-line name: `kb` or `pinhole`.
+    /// The command-line name: `kb`, `pinhole` or `mei`.
     pub fn short_name(self) -> &'static str {
         match self {
             Self::KannalaBrandt => "kb",
             Self::PinholeRadtan => "pinhole",
+            Self::Unified => "mei",
         }
     }
 
     /// Parameter names in CamOdoCal order.
-    pub fn param_names(self) -> [&'static str; 8] {
+    pub fn param_names(self) -> &'static [&'static str] {
         match self {
-            Self::KannalaBrandt => KannalaBrandt::PARAM_NAMES,
-            Self::PinholeRadtan => PinholeRadtan::PARAM_NAMES,
+            Self::KannalaBrandt => &KannalaBrandt::PARAM_NAMES,
+            Self::PinholeRadtan => &PinholeRadtan::PARAM_NAMES,
+            Self::Unified => &Unified::PARAM_NAMES,
         }
     }
 
-    /// A camera of this model from its 8 parameters (CamOdoCal order).
+    /// The number of parameters: 8, or 9 for the unified model.
+    pub fn num_params(self) -> usize {
+        self.param_names().len()
+    }
+
+    /// A camera of this model from its parameters (CamOdoCal order).
     ///
     /// # Errors
     /// [`ParameterError`] for a wrong count, a non-finite value or a non-positive focal
@@ -70,16 +83,20 @@ impl IntrinsicModel {
             Self::PinholeRadtan => {
                 PinholeRadtan::new(width, height, [0.0, 0.0, 0.0, 0.0, 1.0, 1.0, 0.0, 0.0])?.into()
             }
+            Self::Unified => {
+                Unified::new(width, height, [1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 1.0, 0.0, 0.0])?.into()
+            }
         };
         camera.set_params(params)?;
         Ok(camera)
     }
 
-    /// The model of a camera, if it is one of the two calibrated here.
+    /// The model of a camera, if it is one of the three calibrated here.
     pub fn of(camera: &Camera) -> Option<Self> {
         match camera {
             Camera::KannalaBrandt(_) => Some(Self::KannalaBrandt),
             Camera::PinholeRadtan(_) => Some(Self::PinholeRadtan),
+            Camera::Unified(_) => Some(Self::Unified),
             _ => None,
         }
     }
@@ -92,13 +109,9 @@ impl FromStr for IntrinsicModel {
         match s.to_ascii_lowercase().as_str() {
             "kb" | "kannala_brandt" | "kannala-brandt" => Ok(Self::KannalaBrandt),
             "pinhole" | "pinhole_radtan" | "pinhole-radtan" => Ok(Self::PinholeRadtan),
-            "mei" | "unified" => Err(IntrinsicsError::InvalidInput(
-                "the unified (Mei) model is not calibrated here: its initialization is left out; \
-                 use kb for fisheyes or pinhole"
-                    .into(),
-            )),
+            "mei" | "unified" | "omni" => Ok(Self::Unified),
             other => Err(IntrinsicsError::InvalidInput(format!(
-                "unknown model `{other}`: expected kb or pinhole"
+                "unknown model `{other}`: expected kb, pinhole or mei"
             ))),
         }
     }
@@ -107,7 +120,8 @@ impl FromStr for IntrinsicModel {
 /// Options of [`calibrate_intrinsics`].
 #[derive(Clone, Debug, PartialEq)]
 pub struct IntrinsicsOptions {
-    /// The Kannala-Brandt initialization's options.
+    /// The line-based initializations' options: Kannala-Brandt's vanishing points and the
+    /// unified model's line conics.
     pub kb_init: KbInitOptions,
     /// See [`MIN_NORMAL_SPREAD_DEG`] (the default).
     pub min_normal_spread_deg: f64,
@@ -149,6 +163,14 @@ pub enum Initialization {
     },
     /// Pinhole-radtan: Zhang's closed form.
     Zhang(ZhangIntrinsics),
+    /// Unified: the generalized focal length from the line conics of the parabolic case
+    /// (Mei and Rives, ICRA 2007; [`super::mei_init`]).
+    LineConics {
+        /// Every hypothesis with its score (`focal` is `gamma`).
+        hypotheses: Vec<FocalHypothesis>,
+        /// Index of the one kept.
+        chosen: usize,
+    },
     /// Pinhole-radtan: the fallback when Zhang's start refined to a poor fit or had no
     /// solution: the principal point at the image centre and one focal length
     /// ([`super::pinhole_init::centred_initialization`]).
@@ -251,11 +273,11 @@ pub struct IntrinsicCalibration {
     /// RMS of the residual coordinates after the initialization (pixels).
     pub initial_rms_px: f64,
     /// Standard deviation of each parameter (CamOdoCal order), from `covariance`.
-    pub std_devs: [f64; 8],
+    pub std_devs: Vec<f64>,
     /// Covariance of the parameters with the board poses marginalized, scaled by the
     /// estimated noise variance (the solver's covariance, see
     /// [`ibc_bundle_adjust::Problem::covariance`]).
-    pub covariance: SMatrix<f64, 8, 8>,
+    pub covariance: DMatrix<f64>,
     /// The pixel noise estimated from the residuals, `sqrt(sum r^2 / (m - n))`.
     pub noise_sigma_px: f64,
     /// Largest angle between two board normals, degrees.
@@ -361,7 +383,7 @@ impl IntrinsicCalibration {
 /// The gates of an intrinsic calibration (see the constants).
 fn gates(
     camera: &Camera,
-    std_devs: &[f64; 8],
+    std_devs: &[f64],
     rms_px: f64,
     outliers: usize,
     corners: usize,
@@ -377,8 +399,9 @@ fn gates(
     let names = camera.param_names();
     let params = camera.params();
     let sizes = [f64::from(camera.width()), f64::from(camera.height())];
-    // Both models order their parameters [.., fx, fy, cx, cy] in the last four.
-    for (k, i) in (4..8).enumerate() {
+    // Every model orders its parameters [.., fx, fy, cx, cy] in the last four.
+    let n = params.len();
+    for (k, i) in (n.saturating_sub(4)..n).enumerate() {
         let (scale, limit, reference) = if k < 2 {
             (params[i].abs(), MAX_FOCAL_RELATIVE_STD, "its value")
         } else {
@@ -423,7 +446,8 @@ pub fn normal_spread_deg(camera_from_board: &[Isometry3<f64>]) -> f64 {
 /// Calibrates a camera's intrinsics from corners of a planar target.
 ///
 /// Kannala-Brandt starts from the paper's vanishing-point hypotheses, pinhole-radtan from
-/// Zhang's closed form; both then refine the 8 parameters and every board pose together (see
+/// Zhang's closed form, unified from Mei and Rives's line conics; each then refines all its
+/// parameters and every board pose together (see
 /// [`crate::intrinsics`]).
 ///
 /// # Errors
@@ -495,6 +519,17 @@ pub fn calibrate_intrinsics(
             Err(zhang @ IntrinsicsError::Initialization(_)) => centred().map_err(|_| zhang)?,
             Err(e) => return Err(e),
         },
+        IntrinsicModel::Unified => {
+            let init = unified_initialization(&usable, target, &options.kb_init)?;
+            (
+                init.camera.into(),
+                init.camera_from_board,
+                Initialization::LineConics {
+                    hypotheses: init.hypotheses,
+                    chosen: init.chosen,
+                },
+            )
+        }
     };
     let spread = normal_spread_deg(&initial_poses);
     if spread < options.min_normal_spread_deg {
@@ -508,8 +543,7 @@ pub fn calibrate_intrinsics(
         });
     }
     let data = all_correspondences(target, &usable);
-    let mut initial = [0.0; 8];
-    initial.copy_from_slice(initial_camera.params());
+    let initial = initial_camera.params().to_vec();
     let initial_rms_px = residual_stats(&initial_camera, &initial_poses, &data, None).0;
     let mut robust = robust_refine(
         model,
@@ -536,8 +570,7 @@ pub fn calibrate_intrinsics(
             .map_or(true, |r| fit(r) > PINHOLE_FALLBACK_RMS_PX)
         && let Ok((camera, poses, init)) = centred()
     {
-        let mut start = [0.0; 8];
-        start.copy_from_slice(camera.params());
+        let start = camera.params().to_vec();
         if let Ok(alternative) =
             robust_refine(model, (w, h), &start, &poses, &data, &options.solver)
             && robust
@@ -582,12 +615,16 @@ pub fn calibrate_intrinsics(
         .collect();
     let outlier_corners = inliers.iter().flatten().filter(|&&i| !i).count();
     let used_corners = inliers.iter().map(Vec::len).sum();
-    let covariance = refined.covariance.ok_or_else(|| {
+    let covariance = refined.covariance.clone().ok_or_else(|| {
         IntrinsicsError::SingularInformation(
             "some intrinsic parameter is not observable from these views".into(),
         )
     })?;
-    let std_devs = std::array::from_fn(|i| covariance[(i, i)].max(0.0).sqrt());
+    let std_devs = covariance
+        .diagonal()
+        .iter()
+        .map(|v| v.max(0.0).sqrt())
+        .collect::<Vec<_>>();
     let warnings = gates(
         &camera,
         &std_devs,

@@ -50,6 +50,18 @@ pub struct KbInitOptions {
     pub non_exhaustive: crate::NonExhaustive,
 }
 
+impl KbInitOptions {
+    /// The line families hypotheses are taken from: rows, and columns when
+    /// [`Self::use_columns`] is set.
+    pub(crate) fn families(&self) -> &'static [LineFamily] {
+        if self.use_columns {
+            &[LineFamily::Rows, LineFamily::Columns]
+        } else {
+            &[LineFamily::Rows]
+        }
+    }
+}
+
 impl Default for KbInitOptions {
     fn default() -> Self {
         Self {
@@ -109,26 +121,9 @@ pub fn image_focal_hypotheses(
     options: &KbInitOptions,
 ) -> Vec<(LineFamily, usize, f64)> {
     let mut out = Vec::new();
-    let families: &[LineFamily] = if options.use_columns {
-        &[LineFamily::Rows, LineFamily::Columns]
-    } else {
-        &[LineFamily::Rows]
-    };
-    for &family in families {
-        let mut lines: std::collections::BTreeMap<u32, Vec<Vector2<f64>>> = Default::default();
-        for c in &image.corners {
-            let key = match family {
-                LineFamily::Rows => c.row,
-                LineFamily::Columns => c.col,
-            };
-            lines
-                .entry(key)
-                .or_default()
-                .push((c.pixel() - centre) / scale);
-        }
-        let circles: Vec<AlgebraicCircle> = lines
-            .values()
-            .filter(|pts| pts.len() >= options.min_line_corners.max(3))
+    for &family in options.families() {
+        let circles: Vec<AlgebraicCircle> = board_lines(image, family, centre, scale, options)
+            .iter()
             .filter_map(|pts| fit_circle(pts))
             .collect();
         if let Some(vp) = common_points(&circles) {
@@ -139,6 +134,33 @@ pub fn image_focal_hypotheses(
         }
     }
     out
+}
+
+/// The corners of each board row (or column) of an image with at least
+/// [`KbInitOptions::min_line_corners`] of them (and at least 3), in coordinates centred at
+/// `centre` and divided by `scale`.
+pub(crate) fn board_lines(
+    image: &ImageCorners,
+    family: LineFamily,
+    centre: Vector2<f64>,
+    scale: f64,
+    options: &KbInitOptions,
+) -> Vec<Vec<Vector2<f64>>> {
+    let mut lines: std::collections::BTreeMap<u32, Vec<Vector2<f64>>> = Default::default();
+    for c in &image.corners {
+        let key = match family {
+            LineFamily::Rows => c.row,
+            LineFamily::Columns => c.col,
+        };
+        lines
+            .entry(key)
+            .or_default()
+            .push((c.pixel() - centre) / scale);
+    }
+    lines
+        .into_values()
+        .filter(|pts| pts.len() >= options.min_line_corners.max(3))
+        .collect()
 }
 
 /// The paper's equidistant camera for a focal length: `k = 0`, `mu = mv = f`,
@@ -174,8 +196,7 @@ pub fn kannala_brandt_initialization(
     let (w, h) = (f64::from(corners.width), f64::from(corners.height));
     let centre = Vector2::new(0.5 * w, 0.5 * h);
     let scale = 0.5 * w.hypot(h);
-    let data = all_correspondences(target, corners);
-    let raw: Vec<(usize, LineFamily, usize, f64)> = corners
+    let raw: Vec<RawHypothesis> = corners
         .images
         .iter()
         .enumerate()
@@ -185,30 +206,71 @@ pub fn kannala_brandt_initialization(
                 .map(move |(family, lines, f)| (i, family, lines, f))
         })
         .collect();
+    let ChosenHypothesis {
+        hypotheses,
+        chosen,
+        camera_from_board,
+    } = choose_hypothesis(corners, target, raw, options, |focal| {
+        Ok(equidistant_camera(corners.width, corners.height, focal)?.into())
+    })?;
+    let camera = equidistant_camera(corners.width, corners.height, hypotheses[chosen].focal)?;
+    Ok(KbInitialization {
+        camera,
+        hypotheses,
+        chosen,
+        camera_from_board,
+    })
+}
+
+/// A focal-length hypothesis before scoring: (image, line family, lines fitted, focal).
+pub(crate) type RawHypothesis = (usize, LineFamily, usize, f64);
+
+/// The outcome of [`choose_hypothesis`].
+pub(crate) struct ChosenHypothesis {
+    /// Every hypothesis, scored.
+    pub hypotheses: Vec<FocalHypothesis>,
+    /// Index of the best.
+    pub chosen: usize,
+    /// `camera_from_board` of every image under the best camera (PnP, refined).
+    pub camera_from_board: Vec<Isometry3<f64>>,
+}
+
+/// Scores every hypothesis by the capped reprojection error after PnP (unrefined) in every
+/// image with the camera `camera_of(focal)`, keeps the best, and solves every board pose
+/// under it (refined). Shared by the Kannala-Brandt and the unified initializations.
+///
+/// # Errors
+/// [`IntrinsicsError::NoFocalHypothesis`] when `raw` is empty or no hypothesis gives a camera,
+/// and [`IntrinsicsError::BoardPose`] when an image has no pose under the chosen camera.
+pub(crate) fn choose_hypothesis(
+    corners: &CornerSet,
+    target: &PlanarTarget,
+    raw: Vec<RawHypothesis>,
+    options: &KbInitOptions,
+    camera_of: impl Fn(f64) -> Result<Camera, IntrinsicsError> + Sync,
+) -> Result<ChosenHypothesis, IntrinsicsError> {
+    let none = IntrinsicsError::NoFocalHypothesis {
+        min_corners: options.min_line_corners,
+    };
     if raw.is_empty() {
-        return Err(IntrinsicsError::NoFocalHypothesis {
-            min_corners: options.min_line_corners,
-        });
+        return Err(none);
     }
+    let data = all_correspondences(target, corners);
     let total_coords = 2.0 * corners.num_corners() as f64;
     let cap = options.score_cap_px;
     let hypotheses: Vec<FocalHypothesis> = raw
         .par_iter()
         .map(|&(image, family, lines, focal)| {
-            let sum = match equidistant_camera(corners.width, corners.height, focal) {
-                Ok(kb) => {
-                    let camera = Camera::from(kb);
-                    data.iter()
-                        .map(
-                            |(points, pixels)| match board_pose(&camera, points, pixels, false) {
-                                Ok(pose) => {
-                                    capped_squared_error(&camera, &pose, points, pixels, cap)
-                                }
-                                Err(_) => cap * cap * points.len() as f64,
-                            },
-                        )
-                        .sum::<f64>()
-                }
+            let sum = match camera_of(focal) {
+                Ok(camera) => data
+                    .iter()
+                    .map(
+                        |(points, pixels)| match board_pose(&camera, points, pixels, false) {
+                            Ok(pose) => capped_squared_error(&camera, &pose, points, pixels, cap),
+                            Err(_) => cap * cap * points.len() as f64,
+                        },
+                    )
+                    .sum::<f64>(),
                 Err(_) => f64::INFINITY,
             };
             FocalHypothesis {
@@ -223,27 +285,22 @@ pub fn kannala_brandt_initialization(
     let chosen = hypotheses
         .iter()
         .enumerate()
+        .filter(|(_, h)| h.rms_px.is_finite())
         .min_by(|a, b| a.1.rms_px.total_cmp(&b.1.rms_px))
         .map(|(i, _)| i)
-        .ok_or(IntrinsicsError::NoFocalHypothesis {
-            min_corners: options.min_line_corners,
-        })?;
-    let camera = equidistant_camera(corners.width, corners.height, hypotheses[chosen].focal)?;
-    let as_camera = Camera::from(camera.clone());
+        .ok_or(none)?;
+    let camera = camera_of(hypotheses[chosen].focal)?;
     let camera_from_board = data
         .iter()
         .zip(&corners.images)
         .map(|((points, pixels), image)| {
-            board_pose(&as_camera, points, pixels, true).map_err(|source| {
-                IntrinsicsError::BoardPose {
-                    image: image.name.clone(),
-                    source,
-                }
+            board_pose(&camera, points, pixels, true).map_err(|source| IntrinsicsError::BoardPose {
+                image: image.name.clone(),
+                source,
             })
         })
         .collect::<Result<Vec<_>, _>>()?;
-    Ok(KbInitialization {
-        camera,
+    Ok(ChosenHypothesis {
         hypotheses,
         chosen,
         camera_from_board,

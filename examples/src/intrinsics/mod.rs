@@ -1,6 +1,7 @@
 //! Intrinsic calibration of one camera from the corners of a planar target (issue 9): the
-//! Kannala-Brandt method of Heng et al. (ICRA 2014, section III) and pinhole-radtan from
-//! Zhang's closed form, both refined jointly with every board pose.
+//! Kannala-Brandt method of Heng et al. (ICRA 2014, section III), pinhole-radtan from
+//! Zhang's closed form and the unified (Mei) model from Mei and Rives's line conics, each
+//! refined jointly with every board pose.
 //!
 //! # Method
 //! - **Kannala-Brandt** ([`kb_init`]): start from the equidistant camera `k1..k4 = 0`,
@@ -20,18 +21,17 @@
 //!   calibration is run again from a centred start (principal point at the image centre, one
 //!   focal length from the homographies, [`pinhole_init::centred_initialization`]) and kept
 //!   when it fits at least twice as well.
-//! - **Refinement** (both): Levenberg-Marquardt over the 8 intrinsics and every
+//! - **Unified (Mei)** ([`mei_init`]): Mei and Rives (ICRA 2007, section IV): `xi = 1`, no
+//!   distortion, the principal point at the image centre; with `xi = 1` the corners of a
+//!   board line satisfy one linear equation in `(n_x, n_y, n_z gamma, n_z / gamma)`, so each
+//!   row and column fitted gives `gamma`; each image's median over its rows (and columns) is
+//!   a hypothesis, scored like Kannala-Brandt's, and the refinement frees `xi`.
+//! - **Refinement** (all): Levenberg-Marquardt over the model's intrinsics (8, or 9 with
+//!   `xi`) and every
 //!   `camera_from_board` with `ibc-bundle-adjust` (poses eliminated by the Schur complement)
 //!   and the analytic intrinsic Jacobians of `ibc-camera-models`. The parameter covariance is
 //!   the inverse Schur complement scaled by the a-posteriori noise variance
 //!   `sum r^2 / (m - n)`.
-//! - **Unified (Mei)**: left out. Its published initializations (Mei and Rives, ICRA 2007:
-//!   `xi = 1`, a generalized focal length from a line image, then a per-image homography) need
-//!   either a user-picked line or `xi` fixed at 1, and `xi` is strongly correlated with the
-//!   focal length so the refinement from that start was not validated here;
-//!   [`IntrinsicModel`]'s parser refuses `mei` with a message saying so. Fisheyes are
-//!   calibrated with `kb`.
-//!
 //! - **Outliers** ([`robust`]): an image with fewer than [`MIN_CORNERS_PER_IMAGE`] corners (a
 //!   detector that failed on it) is skipped and named ([`ImageStatus::TooFewCorners`]); when
 //!   some corner does not fit, Cauchy-weighted refinements find the outlier corners, which
@@ -81,8 +81,8 @@
 //!   `[-0.5, width - 0.5] x [-0.5, height - 0.5]`.
 //!
 //! # Command line
-//! `ibc intrinsics --corners FILE --model kb|pinhole [--board ROWSxCOLS --square M] --out DIR
-//! [--json]`, or `ibc intrinsics --simulate [--model kb|pinhole] [--views N] [--noise PX]
+//! `ibc intrinsics --corners FILE --model kb|pinhole|mei [--board ROWSxCOLS --square M] --out DIR
+//! [--json]`, or `ibc intrinsics --simulate [--model kb|pinhole|mei] [--views N] [--noise PX]
 //! [--missing FRACTION] [--seed N] [--true-camera FILE] --out DIR` ([`command`]). Outputs
 //! ([`output`]), written all or nothing: `<name>_camera_calib.yaml` (CamOdoCal),
 //! `camchain.yaml` (Kalibr), `intrinsics_report.json` (parameters with standard deviations,
@@ -111,6 +111,7 @@ pub mod division_model;
 mod error;
 pub mod homography;
 pub mod kb_init;
+pub mod mei_init;
 pub mod output;
 pub mod pinhole_init;
 mod refine;

@@ -11,13 +11,13 @@
 //! The covariance of the intrinsics is the solver's ([`Problem::covariance`]: the inverse of
 //! the Schur complement of `J^T J` with the poses eliminated, Triggs et al. 2000), scaled by
 //! the a-posteriori variance factor `sum r^2 / (m - n)` (`m` residual coordinates,
-//! `n = 8 + 6 * images` unknowns): the estimated pixel noise variance.
+//! `n = params + 6 * images` unknowns): the estimated pixel noise variance.
 
 use ibc_bundle_adjust::{
     CostFunction, Jacobians, Problem, RobustLoss, Se3Manifold, SolverOptions, Summary,
 };
 use ibc_camera_models::{Camera, CameraModel};
-use nalgebra::{Isometry3, Matrix2x6, Matrix3x6, Point3, SMatrix, Vector2};
+use nalgebra::{DMatrix, Isometry3, Matrix2x6, Matrix2xX, Matrix3x6, Point3, Vector2};
 
 use ibc_bundle_adjust::BundleAdjustError;
 
@@ -25,8 +25,8 @@ use super::board_pose::ImageCorrespondences;
 use super::calibrate::IntrinsicModel;
 use super::error::IntrinsicsError;
 
-/// 2 x 8: d pixel / d intrinsics.
-pub(crate) type IntrinsicJacobian = SMatrix<f64, 2, 8>;
+/// 2 x n: d pixel / d intrinsics (n = the model's parameter count).
+pub(crate) type IntrinsicJacobian = Matrix2xX<f64>;
 
 /// The residual and Jacobians of one corner.
 pub(crate) struct CornerTerms {
@@ -55,12 +55,15 @@ pub(crate) fn corner_terms(
         .copy_from(&(-r * point.coords.cross_matrix()));
     Some(CornerTerms {
         residual: j.pixel - observed,
-        d_intrinsics: j.d_pixel_d_params.fixed_columns::<8>(0).into_owned(),
+        d_intrinsics: j
+            .d_pixel_d_params
+            .columns(0, camera.params().len())
+            .into_owned(),
         d_pose: j.d_pixel_d_point * d_point_d_delta,
     })
 }
 
-/// The reprojection residuals of one image: blocks `[intrinsics (8), camera_from_board (7)]`,
+/// The reprojection residuals of one image: blocks `[intrinsics (n), camera_from_board (7)]`,
 /// each corner's residual scaled by the square root of its weight (iteratively reweighted
 /// least squares; weight 1 is the plain reprojection error).
 pub(crate) struct ImageReprojection {
@@ -71,9 +74,9 @@ pub(crate) struct ImageReprojection {
     pub observed: Vec<Vector2<f64>>,
     /// `sqrt(weight)` of each corner.
     pub sqrt_weights: Vec<f64>,
+    /// `[n, 7]`: the model's parameter count and the pose's.
+    pub block_sizes: [usize; 2],
 }
-
-const BLOCK_SIZES: [usize; 2] = [8, 7];
 
 impl CostFunction for ImageReprojection {
     fn num_residuals(&self) -> usize {
@@ -81,7 +84,7 @@ impl CostFunction for ImageReprojection {
     }
 
     fn parameter_block_sizes(&self) -> &[usize] {
-        &BLOCK_SIZES
+        &self.block_sizes
     }
 
     fn evaluate(
@@ -123,10 +126,11 @@ impl CostFunction for ImageReprojection {
             residuals[2 * k + 1] = t.residual.y;
             terms.push(t);
         }
+        let n = self.block_sizes[0];
         if let Some(block) = jacobians.row_major_mut(0) {
             for (k, t) in terms.iter().enumerate() {
                 for row in 0..2 {
-                    let dst = &mut block[(2 * k + row) * 8..(2 * k + row + 1) * 8];
+                    let dst = &mut block[(2 * k + row) * n..(2 * k + row + 1) * n];
                     for (c, v) in dst.iter_mut().enumerate() {
                         *v = t.d_intrinsics[(row, c)];
                     }
@@ -149,13 +153,13 @@ impl CostFunction for ImageReprojection {
 
 /// The outcome of [`refine`].
 pub(crate) struct Refined {
-    pub params: [f64; 8],
+    pub params: Vec<f64>,
     pub camera_from_board: Vec<Isometry3<f64>>,
     pub summary: Summary,
-    /// Covariance of the intrinsics (8 x 8, parameter order), scaled by `noise_variance`;
+    /// Covariance of the intrinsics (n x n, parameter order), scaled by `noise_variance`;
     /// `None` for a weighted pass or when the information matrix is singular (an intrinsic
     /// the views do not determine).
-    pub covariance: Option<SMatrix<f64, 8, 8>>,
+    pub covariance: Option<DMatrix<f64>>,
     /// `sum r^2 / (m - n)`, pixels squared.
     pub noise_variance: f64,
 }
@@ -168,12 +172,20 @@ pub(crate) struct Refined {
 pub(crate) fn refine(
     model: IntrinsicModel,
     (width, height): (u32, u32),
-    initial: &[f64; 8],
+    initial: &[f64],
     initial_poses: &[Isometry3<f64>],
     data: &[ImageCorrespondences],
     weights: Option<&[Vec<f64>]>,
     options: &SolverOptions,
 ) -> Result<Refined, IntrinsicsError> {
+    let n_params = model.num_params();
+    if initial.len() != n_params {
+        return Err(IntrinsicsError::InvalidInput(format!(
+            "{} intrinsics given for the {} model's {n_params}",
+            initial.len(),
+            model.short_name()
+        )));
+    }
     let mut problem = Problem::new();
     let intrinsics = problem.add_parameter_block(initial)?;
     let mut poses = Vec::with_capacity(initial_poses.len());
@@ -192,6 +204,7 @@ pub(crate) fn refine(
                 points: points.clone(),
                 observed: pixels.clone(),
                 sqrt_weights,
+                block_sizes: [n_params, 7],
             },
             RobustLoss::Trivial,
             &[intrinsics, block],
@@ -209,9 +222,7 @@ pub(crate) fn refine(
         }
         _ => {}
     }
-    let values = problem.parameter_block(intrinsics)?;
-    let mut params = [0.0; 8];
-    params.copy_from_slice(values);
+    let params = problem.parameter_block(intrinsics)?.to_vec();
     let camera_from_board = poses
         .iter()
         .map(|&b| {
@@ -221,7 +232,7 @@ pub(crate) fn refine(
         })
         .collect::<Result<Vec<_>, IntrinsicsError>>()?;
     let m: usize = data.iter().map(|(points, _)| 2 * points.len()).sum();
-    let n = 8 + 6 * data.len();
+    let n = n_params + 6 * data.len();
     if m <= n {
         return Err(IntrinsicsError::SingularInformation(format!(
             "{m} residual coordinates do not exceed the {n} unknowns"
@@ -235,8 +246,8 @@ pub(crate) fn refine(
         match problem.covariance(&[intrinsics], options) {
             Ok(unit) => {
                 let matrix = unit.matrix();
-                (matrix.nrows() == 8 && matrix.ncols() == 8)
-                    .then(|| SMatrix::<f64, 8, 8>::from_fn(|r, c| matrix[(r, c)] * noise_variance))
+                (matrix.nrows() == n_params && matrix.ncols() == n_params)
+                    .then(|| matrix.map(|v| v * noise_variance))
             }
             Err(
                 BundleAdjustError::SingularInformation

@@ -68,6 +68,15 @@ pub enum InitializationReport {
         /// The focal length, pixels.
         focal_px: f64,
     },
+    /// Mei and Rives's line conics (unified): `xi = 1` and a generalized focal length.
+    LineConics {
+        /// The generalized focal length `gamma` kept, pixels.
+        gamma_px: f64,
+        /// Every hypothesis with its score (`focal` is `gamma`).
+        hypotheses: Vec<FocalHypothesis>,
+        /// Index of the one kept.
+        chosen: usize,
+    },
 }
 
 /// A failed quality gate as reported: its fields and its message.
@@ -137,7 +146,7 @@ impl IntrinsicsReport {
         let values = calibration.camera.params();
         let initial = calibration.initial_camera.params();
         let truth_values = truth.map(CameraModel::params);
-        let parameters = (0..8)
+        let parameters = (0..names.len().min(values.len()))
             .map(|i| {
                 let t = truth_values.and_then(|t| t.get(i).copied());
                 ParameterEstimate {
@@ -167,6 +176,11 @@ impl IntrinsicsReport {
             },
             Initialization::CentredFocal { focal_px } => InitializationReport::CentredFocal {
                 focal_px: *focal_px,
+            },
+            Initialization::LineConics { hypotheses, chosen } => InitializationReport::LineConics {
+                gamma_px: hypotheses.get(*chosen).map_or(f64::NAN, |h| h.focal),
+                hypotheses: hypotheses.clone(),
+                chosen: *chosen,
             },
         };
         Self {
@@ -270,6 +284,18 @@ impl IntrinsicsReport {
                     s,
                     "initialization: principal point at the centre, f = {focal_px:.2} px \
                      (Zhang's closed form refined to a poor fit)"
+                );
+            }
+            InitializationReport::LineConics {
+                gamma_px,
+                hypotheses,
+                ..
+            } => {
+                let _ = writeln!(
+                    s,
+                    "initialization: line conics, xi = 1, gamma = {gamma_px:.2} px (best of {} \
+                     hypotheses)",
+                    hypotheses.len()
                 );
             }
         }

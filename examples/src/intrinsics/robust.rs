@@ -103,7 +103,7 @@ fn residuals(
 pub(crate) fn robust_refine(
     model: IntrinsicModel,
     (width, height): (u32, u32),
-    initial: &[f64; 8],
+    initial: &[f64],
     initial_poses: &[Isometry3<f64>],
     data: &[ImageCorrespondences],
     options: &SolverOptions,

@@ -11,7 +11,7 @@
 //! [`BoardSimulationOptions::missing_fraction`] and moved by Gaussian noise; a corner that the
 //! noise moves out of the image is dropped.
 
-use ibc_camera_models::{Camera, CameraModel, KannalaBrandt, PinholeRadtan};
+use ibc_camera_models::{Camera, CameraModel, KannalaBrandt, PinholeRadtan, Unified};
 use nalgebra::{Isometry3, Rotation3, Translation3, Unit, UnitQuaternion, Vector2, Vector3};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -77,14 +77,14 @@ impl Default for BoardSimulationOptions {
 }
 
 impl BoardSimulationOptions {
-    /// The defaults for a model's preset camera ([`preset_camera`]). The Kannala-Brandt
-    /// fisheye sees up to 95 degrees of incidence (a 190 degree lens) and its boards are
+    /// The defaults for a model's preset camera ([`preset_camera`]). The Kannala-Brandt and
+    /// unified fisheyes see up to 95 degrees of incidence (a 190 degree lens) and its boards are
     /// tilted by 40 to 70 degrees; the pinhole's by 20 to 50. These are the geometries that
     /// gave the smallest parameter standard deviations in a search over distance, tilt and
     /// visibility (20 views, 0.2 px noise; see BENCHMARKS.md).
     pub fn for_model(model: IntrinsicModel) -> Self {
         match model {
-            IntrinsicModel::KannalaBrandt => Self {
+            IntrinsicModel::KannalaBrandt | IntrinsicModel::Unified => Self {
                 max_incidence_deg: Some(95.0),
                 min_tilt_deg: 40.0,
                 max_tilt_deg: 70.0,
@@ -177,6 +177,22 @@ pub fn fisheye_190() -> Result<KannalaBrandt, IntrinsicsError> {
     )?)
 }
 
+/// A unified (Mei) fisheye of about 190 degrees on the same 1280 x 960 sensor as
+/// [`fisheye_190`]: `xi = 0.95` (so rays up to 161 degrees of incidence are in its domain),
+/// `gamma1 = 486.3`, `gamma2 = 485.8`, principal point `(638.9, 482.6)`, and radial-tangential
+/// distortion `[-0.12, 0.03, 2e-4, -1.5e-4]` (injective over the whole image); 95 degrees of
+/// incidence land about 500 px from the centre.
+///
+/// # Errors
+/// Never in practice (the constants are a valid camera).
+pub fn mei_fisheye() -> Result<Unified, IntrinsicsError> {
+    Ok(Unified::new(
+        1280,
+        960,
+        [0.95, -0.12, 0.03, 2e-4, -1.5e-4, 486.3, 485.8, 638.9, 482.6],
+    )?)
+}
+
 /// The EuRoC MAV dataset's `cam0` distortion `[k1, k2, p1, p2]` (Burri et al., IJRR 2016,
 /// `cam0/sensor.yaml`).
 pub const EUROC_CAM0_DISTORTION: [f64; 4] = [-0.28340811, 0.07395907, 0.00019359, 1.76187114e-05];
@@ -200,7 +216,7 @@ pub fn pinhole_euroc() -> Result<PinholeRadtan, IntrinsicsError> {
     )?)
 }
 
-/// The preset true camera of a model: [`fisheye_190`] or [`pinhole_euroc`].
+/// The preset true camera of a model: [`fisheye_190`], [`pinhole_euroc`] or [`mei_fisheye`].
 ///
 /// # Errors
 /// Never in practice.
@@ -208,6 +224,7 @@ pub fn preset_camera(model: IntrinsicModel) -> Result<Camera, IntrinsicsError> {
     Ok(match model {
         IntrinsicModel::KannalaBrandt => fisheye_190()?.into(),
         IntrinsicModel::PinholeRadtan => pinhole_euroc()?.into(),
+        IntrinsicModel::Unified => mei_fisheye()?.into(),
     })
 }
 

@@ -320,13 +320,14 @@ pub fn rig_top_view_svg(calibration: &TargetCalibration) -> String {
 }
 
 /// The built-in simulated scenes of `ibc target --simulate`.
-pub const SIMULATED_SCENES: [&str; 3] = ["stereo", "car", "fisheye"];
+pub const SIMULATED_SCENES: [&str; 4] = ["stereo", "car", "fisheye", "mei"];
 
 /// A built-in scene: `stereo` (two EuRoC-like pinholes 11 cm apart, a board held in front of
 /// them, 12 views placed in front of each), `car` (four pinholes looking front, left, back
-/// and right, each at its own board standing still while the rig turns: 40 times) or
-/// `fisheye` (one 190-degree Kannala-Brandt camera, 24 views). `views` overrides the number of
-/// views (per camera for `stereo`, times for `car`).
+/// and right, each at its own board standing still while the rig turns: 40 times),
+/// `fisheye` (one 190-degree Kannala-Brandt camera, 24 views) or `mei` (one 190-degree
+/// unified camera, 40 views). `views` overrides the number of views (per camera for
+/// `stereo`, times for `car`).
 ///
 /// # Errors
 /// [`TargetError::InvalidInput`] for an unknown scene or no views, and the simulation's
@@ -364,14 +365,21 @@ pub fn simulate_scene(
                 },
             )
         }
-        "fisheye" => {
+        "fisheye" | "mei" => {
+            let (model, views) = if name == "mei" {
+                // The unified model's xi, gamma and k1 trade off: it needs more views than
+                // Kannala-Brandt for the same projection accuracy (tests/target_images.rs).
+                (IntrinsicModel::Unified, 40)
+            } else {
+                (IntrinsicModel::KannalaBrandt, 24)
+            };
             let rig = Rig::new(vec![RigCamera::new(
                 "cam0",
-                preset(IntrinsicModel::KannalaBrandt)?,
+                preset(model)?,
                 Isometry3::identity(),
             )]);
             let mut options = TargetSimulationOptions {
-                views_per_camera: 24,
+                views_per_camera: views,
                 seed,
                 ..Default::default()
             };
