@@ -1,6 +1,6 @@
 #![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)]
 //! `ibc target` through the binary (issue 20): a simulated stereo pair rendered, detected and
-//! calibrated end to end with its files; and bad input: an unreadable image, images without
+//! calibrated end to end with its files, and a unified (Mei) fisheye; and bad input: an unreadable image, images without
 //! the target, a target file that disagrees with the images, a target that is not an
 //! AprilGrid. Each failure is one line naming the culprit, a non-zero exit, and nothing
 //! written.
@@ -99,6 +99,42 @@ fn a_rendered_stereo_pair_is_calibrated_from_its_image_folders() {
     let chain = Rig::read_kalibr(out.join("camchain.yaml")).unwrap();
     assert_eq!(chain.cameras[0].overlaps, vec![1]);
     assert_eq!(chain.cameras[1].topic.as_deref(), Some("/right/image_raw"));
+}
+
+/// A 190-degree unified (Mei) lens from its rendered images through the whole command: the
+/// model's own initialization, the joint refinement with 9 intrinsics, and Kalibr's `omni`.
+#[test]
+fn a_rendered_unified_fisheye_is_calibrated_end_to_end() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("mei");
+    let o = ibc(&[
+        "target",
+        "--simulate",
+        "mei",
+        "--json",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let report: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    assert_eq!(report["status"], "ok", "{report}");
+    let camera = &report["cameras"][0];
+    assert_eq!(camera["model"], "mei");
+    let error = |i: usize| camera["error"]["params"][i].as_f64().unwrap().abs();
+    let std = |i: usize| camera["param_std"][i].as_f64().unwrap();
+    // xi, and gamma1 and gamma2 (which trade off against xi) within 4 standard deviations; the
+    // principal point within 0.1 px.
+    for i in [0, 5, 6] {
+        assert!(
+            error(i) < 4.0 * std(i),
+            "parameter {i}: {} vs {}",
+            error(i),
+            std(i)
+        );
+    }
+    assert!(error(7) < 0.1 && error(8) < 0.1, "{camera}");
+    let chain = std::fs::read_to_string(out.join("camchain.yaml")).unwrap();
+    assert!(chain.contains("camera_model: omni"), "{chain}");
 }
 
 #[test]
