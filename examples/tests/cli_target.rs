@@ -33,12 +33,21 @@ fn stereo_images(dir: &Path) -> (String, String) {
     )
 }
 
+/// Runs `ibc` with `--json` among `args`, which must succeed with status `ok`: its report.
+fn ok_report(args: &[&str]) -> serde_json::Value {
+    let o = ibc(args);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let report: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    assert_eq!(report["status"], "ok", "{report}");
+    report
+}
+
 #[test]
 fn a_rendered_stereo_pair_is_calibrated_from_its_image_folders() {
     let dir = tempfile::tempdir().unwrap();
     let (images, target) = stereo_images(dir.path());
     let out = dir.path().join("out");
-    let o = ibc(&[
+    let report = ok_report(&[
         "target",
         "--images",
         &images,
@@ -50,9 +59,6 @@ fn a_rendered_stereo_pair_is_calibrated_from_its_image_folders() {
         "--out",
         out.to_str().unwrap(),
     ]);
-    assert!(o.status.success(), "{}", stderr(&o));
-    let report: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
-    assert_eq!(report["status"], "ok", "{report}");
     let right = &report["cameras"][1];
     assert_eq!(right["linked_by"], "shared_views");
     // Against the truth the simulation wrote (left is the rig frame in both).
@@ -107,7 +113,7 @@ fn a_rendered_stereo_pair_is_calibrated_from_its_image_folders() {
 fn a_rendered_unified_fisheye_is_calibrated_end_to_end() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("mei");
-    let o = ibc(&[
+    let report = ok_report(&[
         "target",
         "--simulate",
         "mei",
@@ -115,9 +121,6 @@ fn a_rendered_unified_fisheye_is_calibrated_end_to_end() {
         "--out",
         out.to_str().unwrap(),
     ]);
-    assert!(o.status.success(), "{}", stderr(&o));
-    let report: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
-    assert_eq!(report["status"], "ok", "{report}");
     let camera = &report["cameras"][0];
     assert_eq!(camera["model"], "mei");
     let error = |i: usize| camera["error"]["params"][i].as_f64().unwrap().abs();

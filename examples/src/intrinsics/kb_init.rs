@@ -193,24 +193,11 @@ pub fn kannala_brandt_initialization(
     target: &PlanarTarget,
     options: &KbInitOptions,
 ) -> Result<KbInitialization, IntrinsicsError> {
-    let (w, h) = (f64::from(corners.width), f64::from(corners.height));
-    let centre = Vector2::new(0.5 * w, 0.5 * h);
-    let scale = 0.5 * w.hypot(h);
-    let raw: Vec<RawHypothesis> = corners
-        .images
-        .iter()
-        .enumerate()
-        .flat_map(|(i, image)| {
-            image_focal_hypotheses(image, centre, scale, options)
-                .into_iter()
-                .map(move |(family, lines, f)| (i, family, lines, f))
-        })
-        .collect();
     let ChosenHypothesis {
         hypotheses,
         chosen,
         camera_from_board,
-    } = choose_hypothesis(corners, target, raw, options, |focal| {
+    } = choose_hypothesis(corners, target, options, image_focal_hypotheses, |focal| {
         Ok(equidistant_camera(corners.width, corners.height, focal)?.into())
     })?;
     let camera = equidistant_camera(corners.width, corners.height, hypotheses[chosen].focal)?;
@@ -222,8 +209,11 @@ pub fn kannala_brandt_initialization(
     })
 }
 
-/// A focal-length hypothesis before scoring: (image, line family, lines fitted, focal).
-pub(crate) type RawHypothesis = (usize, LineFamily, usize, f64);
+/// An image's hypotheses, `(line family, lines fitted, focal)`, from its corners, the image
+/// centre, its half-diagonal and the options ([`image_focal_hypotheses`] and the unified
+/// model's `image_gamma_hypotheses`).
+pub(crate) type ImageHypotheses =
+    fn(&ImageCorners, Vector2<f64>, f64, &KbInitOptions) -> Vec<(LineFamily, usize, f64)>;
 
 /// The outcome of [`choose_hypothesis`].
 pub(crate) struct ChosenHypothesis {
@@ -235,9 +225,11 @@ pub(crate) struct ChosenHypothesis {
     pub camera_from_board: Vec<Isometry3<f64>>,
 }
 
-/// Scores every hypothesis by the capped reprojection error after PnP (unrefined) in every
-/// image with the camera `camera_of(focal)`, keeps the best, and solves every board pose
-/// under it (refined). Shared by the Kannala-Brandt and the unified initializations.
+/// Takes every image's hypotheses (`per_image`, in image coordinates centred on the image and
+/// divided by its half-diagonal), scores each by the capped reprojection error after PnP
+/// (unrefined) in every image with the camera `camera_of(focal)`, keeps the best, and solves
+/// every board pose under it (refined). Shared by the Kannala-Brandt and the unified
+/// initializations.
 ///
 /// # Errors
 /// [`IntrinsicsError::NoFocalHypothesis`] when `raw` is empty or no hypothesis gives a camera,
@@ -245,13 +237,26 @@ pub(crate) struct ChosenHypothesis {
 pub(crate) fn choose_hypothesis(
     corners: &CornerSet,
     target: &PlanarTarget,
-    raw: Vec<RawHypothesis>,
     options: &KbInitOptions,
+    per_image: ImageHypotheses,
     camera_of: impl Fn(f64) -> Result<Camera, IntrinsicsError> + Sync,
 ) -> Result<ChosenHypothesis, IntrinsicsError> {
     let none = IntrinsicsError::NoFocalHypothesis {
         min_corners: options.min_line_corners,
     };
+    let (w, h) = (f64::from(corners.width), f64::from(corners.height));
+    let centre = Vector2::new(0.5 * w, 0.5 * h);
+    let scale = 0.5 * w.hypot(h);
+    let raw: Vec<(usize, LineFamily, usize, f64)> = corners
+        .images
+        .iter()
+        .enumerate()
+        .flat_map(|(i, image)| {
+            per_image(image, centre, scale, options)
+                .into_iter()
+                .map(move |(family, lines, f)| (i, family, lines, f))
+        })
+        .collect();
     if raw.is_empty() {
         return Err(none);
     }

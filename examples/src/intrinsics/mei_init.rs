@@ -35,8 +35,7 @@ use nalgebra::{Isometry3, Matrix4, Vector2, Vector4};
 use super::corners::{CornerSet, ImageCorners};
 use super::error::IntrinsicsError;
 use super::kb_init::{
-    ChosenHypothesis, FocalHypothesis, KbInitOptions, LineFamily, RawHypothesis, board_lines,
-    choose_hypothesis,
+    ChosenHypothesis, FocalHypothesis, KbInitOptions, LineFamily, board_lines, choose_hypothesis,
 };
 use super::target::PlanarTarget;
 
@@ -133,24 +132,11 @@ pub fn unified_initialization(
     target: &PlanarTarget,
     options: &KbInitOptions,
 ) -> Result<UnifiedInitialization, IntrinsicsError> {
-    let (w, h) = (f64::from(corners.width), f64::from(corners.height));
-    let centre = Vector2::new(0.5 * w, 0.5 * h);
-    let scale = 0.5 * w.hypot(h);
-    let raw: Vec<RawHypothesis> = corners
-        .images
-        .iter()
-        .enumerate()
-        .flat_map(|(i, image)| {
-            image_gamma_hypotheses(image, centre, scale, options)
-                .into_iter()
-                .map(move |(family, lines, g)| (i, family, lines, g))
-        })
-        .collect();
     let ChosenHypothesis {
         hypotheses,
         chosen,
         camera_from_board,
-    } = choose_hypothesis(corners, target, raw, options, |gamma| {
+    } = choose_hypothesis(corners, target, options, image_gamma_hypotheses, |gamma| {
         Ok(Camera::from(parabolic_camera(
             corners.width,
             corners.height,
