@@ -99,11 +99,13 @@ pub struct FocalHypothesis {
     pub rms_px: f64,
 }
 
-/// The result of [`kannala_brandt_initialization`].
+/// The result of a line-based initialization: [`KbInitialization`] (the equidistant camera
+/// of the best hypothesis) or [`UnifiedInitialization`](super::mei_init::UnifiedInitialization)
+/// (the parabolic camera of the best hypothesis).
 #[derive(Clone, Debug, PartialEq)]
-pub struct KbInitialization {
-    /// The equidistant camera of the best hypothesis.
-    pub camera: KannalaBrandt,
+pub struct LineInitialization<C> {
+    /// The camera of the best hypothesis.
+    pub camera: C,
     /// Every hypothesis, in image order, scored.
     pub hypotheses: Vec<FocalHypothesis>,
     /// Index into `hypotheses` of the one kept.
@@ -111,6 +113,9 @@ pub struct KbInitialization {
     /// `camera_from_board` of every image under the chosen camera (PnP, refined).
     pub camera_from_board: Vec<Isometry3<f64>>,
 }
+
+/// The result of [`kannala_brandt_initialization`].
+pub type KbInitialization = LineInitialization<KannalaBrandt>;
 
 /// The focal-length hypotheses of one image (rows, then columns), in pixels, for an image
 /// centred at `centre` with half-diagonal `scale`.
@@ -193,19 +198,8 @@ pub fn kannala_brandt_initialization(
     target: &PlanarTarget,
     options: &KbInitOptions,
 ) -> Result<KbInitialization, IntrinsicsError> {
-    let ChosenHypothesis {
-        hypotheses,
-        chosen,
-        camera_from_board,
-    } = choose_hypothesis(corners, target, options, image_focal_hypotheses, |focal| {
-        Ok(equidistant_camera(corners.width, corners.height, focal)?.into())
-    })?;
-    let camera = equidistant_camera(corners.width, corners.height, hypotheses[chosen].focal)?;
-    Ok(KbInitialization {
-        camera,
-        hypotheses,
-        chosen,
-        camera_from_board,
+    choose_hypothesis(corners, target, options, image_focal_hypotheses, |focal| {
+        equidistant_camera(corners.width, corners.height, focal)
     })
 }
 
@@ -214,16 +208,6 @@ pub fn kannala_brandt_initialization(
 /// model's `image_gamma_hypotheses`).
 pub(crate) type ImageHypotheses =
     fn(&ImageCorners, Vector2<f64>, f64, &KbInitOptions) -> Vec<(LineFamily, usize, f64)>;
-
-/// The outcome of [`choose_hypothesis`].
-pub(crate) struct ChosenHypothesis {
-    /// Every hypothesis, scored.
-    pub hypotheses: Vec<FocalHypothesis>,
-    /// Index of the best.
-    pub chosen: usize,
-    /// `camera_from_board` of every image under the best camera (PnP, refined).
-    pub camera_from_board: Vec<Isometry3<f64>>,
-}
 
 /// Takes every image's hypotheses (`per_image`, in image coordinates centred on the image and
 /// divided by its half-diagonal), scores each by the capped reprojection error after PnP
@@ -234,13 +218,13 @@ pub(crate) struct ChosenHypothesis {
 /// # Errors
 /// [`IntrinsicsError::NoFocalHypothesis`] when `raw` is empty or no hypothesis gives a camera,
 /// and [`IntrinsicsError::BoardPose`] when an image has no pose under the chosen camera.
-pub(crate) fn choose_hypothesis(
+pub(crate) fn choose_hypothesis<C: Clone + Into<Camera>>(
     corners: &CornerSet,
     target: &PlanarTarget,
     options: &KbInitOptions,
     per_image: ImageHypotheses,
-    camera_of: impl Fn(f64) -> Result<Camera, IntrinsicsError> + Sync,
-) -> Result<ChosenHypothesis, IntrinsicsError> {
+    camera_of: impl Fn(f64) -> Result<C, IntrinsicsError> + Sync,
+) -> Result<LineInitialization<C>, IntrinsicsError> {
     let none = IntrinsicsError::NoFocalHypothesis {
         min_corners: options.min_line_corners,
     };
@@ -266,7 +250,7 @@ pub(crate) fn choose_hypothesis(
     let hypotheses: Vec<FocalHypothesis> = raw
         .par_iter()
         .map(|&(image, family, lines, focal)| {
-            let sum = match camera_of(focal) {
+            let sum = match camera_of(focal).map(Into::<Camera>::into) {
                 Ok(camera) => data
                     .iter()
                     .map(
@@ -295,17 +279,21 @@ pub(crate) fn choose_hypothesis(
         .map(|(i, _)| i)
         .ok_or(none)?;
     let camera = camera_of(hypotheses[chosen].focal)?;
+    let as_camera: Camera = camera.clone().into();
     let camera_from_board = data
         .iter()
         .zip(&corners.images)
         .map(|((points, pixels), image)| {
-            board_pose(&camera, points, pixels, true).map_err(|source| IntrinsicsError::BoardPose {
-                image: image.name.clone(),
-                source,
+            board_pose(&as_camera, points, pixels, true).map_err(|source| {
+                IntrinsicsError::BoardPose {
+                    image: image.name.clone(),
+                    source,
+                }
             })
         })
         .collect::<Result<Vec<_>, _>>()?;
-    Ok(ChosenHypothesis {
+    Ok(LineInitialization {
+        camera,
         hypotheses,
         chosen,
         camera_from_board,

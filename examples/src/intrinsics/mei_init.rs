@@ -29,13 +29,13 @@
 //! Corners are fitted in coordinates centred on the image and divided by its half-diagonal,
 //! so the four columns of the fit are of one scale.
 
-use ibc_camera_models::{Camera, Unified};
-use nalgebra::{Isometry3, Matrix4, Vector2, Vector4};
+use ibc_camera_models::Unified;
+use nalgebra::{Matrix4, Vector2, Vector4};
 
 use super::corners::{CornerSet, ImageCorners};
 use super::error::IntrinsicsError;
 use super::kb_init::{
-    ChosenHypothesis, FocalHypothesis, KbInitOptions, LineFamily, board_lines, choose_hypothesis,
+    KbInitOptions, LineFamily, LineInitialization, board_lines, choose_hypothesis,
 };
 use super::target::PlanarTarget;
 
@@ -44,18 +44,9 @@ use super::target::PlanarTarget;
 /// determine `gamma`.
 pub const MIN_LINE_NORMAL_Z: f64 = 0.05;
 
-/// The result of [`unified_initialization`].
-#[derive(Clone, Debug, PartialEq)]
-pub struct UnifiedInitialization {
-    /// The parabolic camera of the best hypothesis (`xi = 1`, no distortion).
-    pub camera: Unified,
-    /// Every hypothesis (`focal` is `gamma`), in image order, scored.
-    pub hypotheses: Vec<FocalHypothesis>,
-    /// Index into `hypotheses` of the one kept.
-    pub chosen: usize,
-    /// `camera_from_board` of every image under the chosen camera (PnP, refined).
-    pub camera_from_board: Vec<Isometry3<f64>>,
-}
+/// The result of [`unified_initialization`]: the parabolic camera of the best hypothesis
+/// (`xi = 1`, no distortion), every hypothesis (`focal` is `gamma`) and the board poses.
+pub type UnifiedInitialization = LineInitialization<Unified>;
 
 /// `gamma` (in the units of the points) from the points of one line image under `xi = 1`,
 /// or `None` when the line does not determine it (see the module docs).
@@ -132,23 +123,8 @@ pub fn unified_initialization(
     target: &PlanarTarget,
     options: &KbInitOptions,
 ) -> Result<UnifiedInitialization, IntrinsicsError> {
-    let ChosenHypothesis {
-        hypotheses,
-        chosen,
-        camera_from_board,
-    } = choose_hypothesis(corners, target, options, image_gamma_hypotheses, |gamma| {
-        Ok(Camera::from(parabolic_camera(
-            corners.width,
-            corners.height,
-            gamma,
-        )?))
-    })?;
-    let camera = parabolic_camera(corners.width, corners.height, hypotheses[chosen].focal)?;
-    Ok(UnifiedInitialization {
-        camera,
-        hypotheses,
-        chosen,
-        camera_from_board,
+    choose_hypothesis(corners, target, options, image_gamma_hypotheses, |gamma| {
+        parabolic_camera(corners.width, corners.height, gamma)
     })
 }
 
