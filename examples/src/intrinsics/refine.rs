@@ -16,8 +16,8 @@
 use ibc_bundle_adjust::{
     CostFunction, Jacobians, Problem, RobustLoss, Se3Manifold, SolverOptions, Summary,
 };
-use ibc_camera_models::{Camera, CameraModel};
-use nalgebra::{DMatrix, Isometry3, Matrix2x6, Matrix2xX, Matrix3x6, Point3, Vector2};
+use ibc_camera_models::{Camera, CameraModel, ParamJacobian};
+use nalgebra::{DMatrix, Isometry3, Matrix2x6, Matrix3x6, Point3, Vector2};
 
 use ibc_bundle_adjust::BundleAdjustError;
 
@@ -25,8 +25,9 @@ use super::board_pose::ImageCorrespondences;
 use super::calibrate::IntrinsicModel;
 use super::error::IntrinsicsError;
 
-/// 2 x n: d pixel / d intrinsics (n = the model's parameter count).
-pub(crate) type IntrinsicJacobian = Matrix2xX<f64>;
+/// d pixel / d intrinsics on the stack: the model's parameters in the first columns, zero
+/// beyond them ([`ParamJacobian`]).
+pub(crate) type IntrinsicJacobian = ParamJacobian<2>;
 
 /// The residual and Jacobians of one corner.
 pub(crate) struct CornerTerms {
@@ -55,10 +56,7 @@ pub(crate) fn corner_terms(
         .copy_from(&(-r * point.coords.cross_matrix()));
     Some(CornerTerms {
         residual: j.pixel - observed,
-        d_intrinsics: j
-            .d_pixel_d_params
-            .columns(0, camera.params().len())
-            .into_owned(),
+        d_intrinsics: j.d_pixel_d_params,
         d_pose: j.d_pixel_d_point * d_point_d_delta,
     })
 }
