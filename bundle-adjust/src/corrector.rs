@@ -7,8 +7,12 @@
 //! the cost of a residual block is ½ ρ(|r|²), and [`crate::RobustLoss::evaluate`] gives
 //! `[ρ(s), ρ'(s), ρ''(s)]`.
 
-use crate::RobustLoss;
 use crate::error::{BundleAdjustError, Result};
+use crate::{LossCurvature, RobustLoss};
+
+/// Smallest D = 1 + 2 s ρ″ / ρ′ for which [`LossCurvature::InlierCurvature`] keeps the
+/// loss's curvature along the residual; below it the residual is reweighted as in Ceres.
+const MIN_INLIER_CURVATURE: f64 = 0.25;
 
 /// The corrector that turns a robustified residual block into an ordinary least-squares one
 /// with the same gradient and a Gauss-Newton Hessian that keeps the loss's curvature
@@ -17,7 +21,8 @@ use crate::error::{BundleAdjustError, Result};
 /// With α the smaller root of ½α² − α − (ρ''/ρ') s = 0, the corrected residual is
 /// √ρ' / (1 − α) r and the corrected Jacobian √ρ' (I − α r rᵀ / s) J. When ρ'' ≤ 0 (every loss
 /// in the outlier region, and all four [`crate::RobustLoss`] variants) α = 0: plain √ρ'
-/// reweighting.
+/// reweighting, unless [`LossCurvature::InlierCurvature`] asks for the correction where
+/// (1 − α)² = 1 + 2 s ρ''/ρ' is at least [`MIN_INLIER_CURVATURE`].
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct Corrector {
     sqrt_rho1: f64,
@@ -26,10 +31,23 @@ pub(crate) struct Corrector {
 }
 
 impl Corrector {
-    /// Builds the corrector for squared norm `s` and loss values `rho`.
+    /// Builds the corrector for squared norm `s` and loss values `rho` with the given rule
+    /// for the loss's curvature.
     #[inline]
-    pub(crate) fn new(s: f64, rho: [f64; 3]) -> Self {
+    pub(crate) fn with_curvature(s: f64, rho: [f64; 3], curvature: LossCurvature) -> Self {
         let sqrt_rho1 = rho[1].sqrt();
+        if curvature == LossCurvature::InlierCurvature && s > 0.0 && rho[2] < 0.0 {
+            // (1 − α)² = D, the factor of the curvature along the residual.
+            let d = 1.0 + 2.0 * s * rho[2] / rho[1];
+            if d >= MIN_INLIER_CURVATURE {
+                let root = d.sqrt();
+                return Self {
+                    sqrt_rho1,
+                    residual_scaling: sqrt_rho1 / root,
+                    alpha_sq_norm: (1.0 - root) / s,
+                };
+            }
+        }
         if s == 0.0 || rho[2] <= 0.0 {
             return Self {
                 sqrt_rho1,
@@ -111,7 +129,7 @@ mod tests {
         let s: f64 = r.iter().map(|v| v * v).sum();
         // A made-up loss with rho'' > 0 exercises the Triggs branch.
         for rho in [RobustLoss::Cauchy { scale: 1.0 }.evaluate(s), [s, 0.7, 0.2]] {
-            let c = Corrector::new(s, rho);
+            let c = Corrector::with_curvature(s, rho, LossCurvature::Reweighted);
             let mut jc = j;
             let mut rc = r;
             c.correct_jacobian(&r, &mut jc, 3);
@@ -120,6 +138,40 @@ mod tests {
                 let expected = rho[1] * (j[col] * r[0] + j[3 + col] * r[1]);
                 let got = jc[col] * rc[0] + jc[3 + col] * rc[1];
                 assert_relative_eq!(got, expected, max_relative = 1e-12);
+            }
+        }
+    }
+
+    /// With the inlier curvature, the corrected Gauss-Newton Hessian of an inlier is the
+    /// robust cost's, Jᵀ (ρ′ I + 2 ρ″ r rᵀ) J, and the gradient is still ρ′ Jᵀ r; an outlier
+    /// (D < 1/4) is reweighted as in Ceres.
+    #[test]
+    fn inlier_curvature_gives_the_robust_hessian() {
+        let j = [0.5, -1.0, 2.0, 0.25, 0.75, -0.5];
+        let loss = RobustLoss::Cauchy { scale: 1.0 };
+        let hessian = |jc: &[f64; 6], a: usize, b: usize| jc[a] * jc[b] + jc[3 + a] * jc[3 + b];
+        // |r|² = 0.25: D = 0.6; |r|² = 2.5: D < 0.
+        for (r, inlier) in [([0.3, -0.4], true), ([1.2, -1.0], false)] {
+            let s: f64 = r.iter().map(|v| v * v).sum();
+            let rho = loss.evaluate(s);
+            let c = Corrector::with_curvature(s, rho, LossCurvature::InlierCurvature);
+            let mut jc = j;
+            let mut rc = r;
+            c.correct_jacobian(&r, &mut jc, 3);
+            c.correct_residual(&mut rc);
+            let rj = |col: usize| j[col] * r[0] + j[3 + col] * r[1];
+            for a in 0..3 {
+                let gradient = jc[a] * rc[0] + jc[3 + a] * rc[1];
+                assert_relative_eq!(gradient, rho[1] * rj(a), max_relative = 1e-12);
+                for b in 0..3 {
+                    let plain = rho[1] * hessian(&j, a, b);
+                    let expected = if inlier {
+                        plain + 2.0 * rho[2] * rj(a) * rj(b)
+                    } else {
+                        plain
+                    };
+                    assert_relative_eq!(hessian(&jc, a, b), expected, max_relative = 1e-12);
+                }
             }
         }
     }

@@ -7,6 +7,7 @@
 //! residuals that end on chunk boundaries; their sums are combined in task order, so results
 //! do not depend on the thread count.
 
+use crate::LossCurvature;
 use crate::corrector::Corrector;
 use crate::cost::Jacobians;
 use crate::kernels::{Shape, with_shape};
@@ -91,6 +92,8 @@ pub(crate) struct Evaluator<'a> {
     tasks: Vec<core::ops::Range<usize>>,
     max_rows: usize,
     isa: Isa,
+    /// How a robust loss's curvature enters the corrected Jacobians.
+    curvature: LossCurvature,
 }
 
 /// Index of the chunk holding chunk residual `i` (program order).
@@ -123,7 +126,14 @@ impl<'a> Evaluator<'a> {
             tasks,
             max_rows,
             isa: Isa::detect(),
+            curvature: LossCurvature::Reweighted,
         }
+    }
+
+    /// The same evaluator with `curvature` for the corrected Jacobians (Ceres's rule unless
+    /// set).
+    pub(crate) fn with_curvature(self, curvature: LossCurvature) -> Self {
+        Self { curvature, ..self }
     }
 
     /// Cost of the residuals whose arguments are all constant.
@@ -315,7 +325,7 @@ impl JacobianTask<'_, '_> {
             } else {
                 let rho = rb.loss.evaluate(s);
                 cost += 0.5 * rho[0];
-                Some(Corrector::new(s, rho))
+                Some(Corrector::with_curvature(s, rho, self.evaluator.curvature))
             };
             // A plain √ρ′ reweighting of the Jacobian is folded into the column scaling.
             let mut factor = 1.0;

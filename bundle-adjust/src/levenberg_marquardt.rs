@@ -97,7 +97,7 @@ pub(crate) fn solve(
     let mut x = problem.values.clone();
     let problem_ref: &Problem = problem;
     let mut linear = LinearSolver::new(&program, options, exec.threads())?;
-    let evaluator = Evaluator::new(problem_ref, &program);
+    let evaluator = Evaluator::new(problem_ref, &program).with_curvature(options.loss_curvature);
     let mut times = StageTimes {
         preprocessing: start.elapsed().as_secs_f64(),
         ..Default::default()

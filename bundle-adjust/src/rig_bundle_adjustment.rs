@@ -73,7 +73,7 @@ use crate::cost::EvaluationProbe;
 use crate::error::{BundleAdjustError, Result};
 use crate::evaluator::{Accumulated, EvalError, Evaluator};
 use crate::manifold::{Se3Manifold, se3_from_params, se3_to_params};
-use crate::options::SolverOptions;
+use crate::options::{LossCurvature, SolverOptions};
 use crate::parallel::Executor;
 use crate::problem::{ParameterBlockId, Problem};
 use crate::program::{NONE, Program};
@@ -200,7 +200,9 @@ pub struct RigBundleAdjustmentOptions {
     /// (default false: it costs a dense factorization of the rig poses' reduced system,
     /// about as much as two iterations).
     pub covariance: bool,
-    /// Solver options (default [`SolverOptions::default`], Ceres's defaults).
+    /// Solver options (default: Ceres's, [`SolverOptions::default`], except
+    /// [`LossCurvature::InlierCurvature`]: the loss's curvature kept for the inliers, which
+    /// saves about one iteration in six here).
     pub solver: SolverOptions,
     /// Keeps the struct open to new fields: write it with `..Default::default()`.
     #[doc(hidden)]
@@ -218,7 +220,10 @@ impl Default for RigBundleAdjustmentOptions {
             held_intrinsics: Vec::new(),
             held_extrinsics: Vec::new(),
             covariance: false,
-            solver: SolverOptions::default(),
+            solver: SolverOptions {
+                loss_curvature: LossCurvature::InlierCurvature,
+                ..SolverOptions::default()
+            },
             non_exhaustive: NonExhaustive(()),
         }
     }
