@@ -7,7 +7,11 @@
 //! - the four-point homography against the same SVD of its 8 x 9 matrix;
 //! - the robust solve at n = 500 with 50 % outliers (five-point LO-RANSAC, refinement, model
 //!   selection) against one scoring pass of an essential matrix over the same correspondences
-//!   (the tangent-plane Sampson error, the inner loop of RANSAC).
+//!   (the tangent-plane Sampson error, the inner loop of RANSAC);
+//! - the rejection of a pair that holds no model (60 random correspondences, 30 inliers
+//!   required, 2000 iterations at most, as `ibc selfcalib` verifies candidate pairs) against
+//!   the same search with 5 required, which runs to the 2000 (how every failing pair was
+//!   searched before the floor `min_inliers / n` on the adaptive count).
 //!
 //! Run: `cargo bench -p ibc-benches --bench relative_pose`.
 #![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)]
@@ -198,5 +202,29 @@ fn bench_robust(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, bench_minimal, bench_robust);
+fn bench_reject(c: &mut Criterion) {
+    let mut group = c.benchmark_group("relative_reject");
+    group.sample_size(20);
+    let p = pair(60, 60, 1.0 / FOCAL, 301);
+    let options = |min_inliers| RelativePoseOptions {
+        ransac: RansacOptions {
+            seed: 1,
+            max_iterations: 2000,
+            min_inliers,
+            ..RelativePoseOptions::default().ransac
+        },
+        ..Default::default()
+    };
+    let (required, baseline) = (options(30), options(5));
+    assert!(relative_pose(&p.a, &p.b, &required).is_err());
+    group.bench_function("no_model_n60_30_required", |bench| {
+        bench.iter(|| black_box(relative_pose(black_box(&p.a), black_box(&p.b), &required)))
+    });
+    group.bench_function("baseline_no_model_n60_5_required", |bench| {
+        bench.iter(|| black_box(relative_pose(black_box(&p.a), black_box(&p.b), &baseline)))
+    });
+    group.finish();
+}
+
+criterion_group!(benches, bench_minimal, bench_robust, bench_reject);
 criterion_main!(benches);

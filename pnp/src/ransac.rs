@@ -51,8 +51,10 @@ pub struct RansacOptions {
     /// `(0, pi/2)`. Default [`DEFAULT_THRESHOLD`].
     pub threshold: f64,
     /// Probability of drawing at least one all-inlier sample, for the adaptive iteration count
-    /// `ln(1 - confidence) / ln(1 - w^3)` (`w` the best inlier ratio so far), in `(0, 1)`.
-    /// Default 0.999.
+    /// `ln(1 - confidence) / ln(1 - w^3)` (`w` the best inlier ratio so far, and no lower than
+    /// `min_inliers / n`: a model with fewer inliers is rejected anyway, so a search that has
+    /// not found one stops once such a model, if there were one, would have been drawn at this
+    /// confidence), in `(0, 1)`. Default 0.999.
     pub confidence: f64,
     /// Fewest iterations. Default 50.
     pub min_iterations: usize,
@@ -199,7 +201,8 @@ pub fn robust_pose(
     };
     let mut rng = ChaCha8Rng::seed_from_u64(options.seed);
     let mut best: Option<Model> = None;
-    let mut needed = options.max_iterations;
+    let min_inliers = options.min_inliers;
+    let mut needed = adaptive_iterations(0, min_inliers, n, 3, options.confidence);
     let mut iterations = 0;
     let mut inliers = Vec::with_capacity(n);
     while iterations < needed.clamp(options.min_iterations, options.max_iterations) {
@@ -222,7 +225,7 @@ pub fn robust_pose(
                 model = local_optimization(&scorer, model, &mut inliers);
             }
             scorer.inliers(&model.rotation, &model.translation, &mut inliers);
-            needed = adaptive_iterations(inliers.len(), n, options.confidence);
+            needed = adaptive_iterations(inliers.len(), min_inliers, n, 3, options.confidence);
             best = Some(model);
         }
     }
@@ -285,10 +288,21 @@ fn sample_three(rng: &mut ChaCha8Rng, n: usize) -> [usize; 3] {
     [i, j, k]
 }
 
-/// `ln(1 - confidence) / ln(1 - w^3)` for the inlier ratio `w`, saturating.
-fn adaptive_iterations(inliers: usize, n: usize, confidence: f64) -> usize {
-    let w = inliers as f64 / n as f64;
-    let all_inlier = w * w * w;
+/// The iterations RANSAC needs (Fischler and Bolles): `ln(1 - confidence) / ln(1 - w^size)`,
+/// saturating, for the inlier ratio `w = max(best, min_inliers) / n` of samples of `size`
+/// correspondences. A model with fewer than `min_inliers` inliers is rejected anyway, so
+/// while the best found has fewer, the count is the one that would have drawn an all-inlier
+/// sample of any model with `min_inliers` at the given confidence: a search for a model that
+/// is not there stops there instead of at `max_iterations`.
+pub(crate) fn adaptive_iterations(
+    best: usize,
+    min_inliers: usize,
+    n: usize,
+    size: i32,
+    confidence: f64,
+) -> usize {
+    let w = best.max(min_inliers) as f64 / n as f64;
+    let all_inlier = w.powi(size);
     if all_inlier >= 1.0 {
         return 0;
     }
@@ -445,4 +459,28 @@ fn refit(
         translation,
         cost: scorer.full_cost(&rotation, &translation),
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::adaptive_iterations;
+
+    /// ln(1 - 0.999) / ln(1 - w^5) for the larger of the best ratio and `min_inliers / n`.
+    #[test]
+    fn a_search_without_min_inliers_stops_where_such_a_model_would_have_been_drawn() {
+        let expected = |w: f64| ((0.001f64).ln() / (1.0 - w.powi(5)).ln()).ceil() as usize;
+        // Best 10 of 60, 30 required: the count of a ratio of one half (218), not of 1/6.
+        assert_eq!(adaptive_iterations(10, 30, 60, 5, 0.999), expected(0.5));
+        assert_eq!(expected(0.5), 218);
+        // Once the best has more than `min_inliers`, its own ratio.
+        assert_eq!(adaptive_iterations(45, 30, 60, 5, 0.999), expected(0.75));
+        // Without a floor, the best ratio alone; none found, no bound.
+        assert_eq!(
+            adaptive_iterations(10, 0, 60, 5, 0.999),
+            expected(1.0 / 6.0)
+        );
+        assert_eq!(adaptive_iterations(0, 0, 60, 5, 0.999), usize::MAX);
+        // More required than there are correspondences: nothing to search.
+        assert_eq!(adaptive_iterations(0, 70, 60, 3, 0.999), 0);
+    }
 }

@@ -25,7 +25,9 @@
 //! is decomposed ([`crate::decompose_essential`]) and kept only in the pose that puts all
 //! five in front of both cameras (depths along the bearings). Poses are scored by MSAC
 //! (`sum min(d^2, threshold^2)`, stopped once above the best), the iteration count adapts to
-//! `ln(1 - confidence) / ln(1 - w^5)`, and each new best pose is refined on its inliers
+//! `ln(1 - confidence) / ln(1 - w^5)` (`w` the best inlier ratio, no lower than
+//! `min_inliers / n`: a pair without a model of `min_inliers` is rejected after the samples
+//! that would have found one), and each new best pose is refined on its inliers
 //! (local optimization). The best pose is refined on all its inliers until they are stable
 //! ([`refine_relative_pose`]: Levenberg-Marquardt on the Sampson error over the rotation
 //! on SO(3) and the translation direction on S^2, five degrees of freedom).
@@ -63,7 +65,7 @@ use crate::error::PnpError;
 use crate::five_point::{depths, rotations_and_translation, solve};
 use crate::geometry::{isometry_from, rotation_from_correlation};
 use crate::homography::{self as homography_mod, PlanarPose};
-use crate::ransac::RansacOptions;
+use crate::ransac::{RansacOptions, adaptive_iterations};
 use crate::refine::RefineOptions;
 use crate::relative_pose_error::{RelativePoseError, RelativeResult, check_bearing_pairs};
 
@@ -564,21 +566,6 @@ fn sample_distinct(rng: &mut ChaCha8Rng, n: usize, out: &mut [usize]) {
     }
 }
 
-/// `ln(1 - confidence) / ln(1 - w^size)` for the inlier ratio `w`, saturating.
-fn adaptive_iterations(inliers: usize, n: usize, size: i32, confidence: f64) -> usize {
-    let w = inliers as f64 / n as f64;
-    let all_inlier = w.powi(size);
-    if all_inlier >= 1.0 {
-        return 0;
-    }
-    let needed = (1.0 - confidence).ln() / (-all_inlier).ln_1p();
-    if needed.is_finite() && needed < usize::MAX as f64 {
-        needed.ceil() as usize
-    } else {
-        usize::MAX
-    }
-}
-
 /// Robust relative pose `b_from_a` from unit bearings `bearings_a[i]`, `bearings_b[i]` of the
 /// same point in two views, with outliers (see the module docs): five-point LO-RANSAC on the
 /// angular Sampson error, refinement on the essential manifold, and the choice between a
@@ -612,7 +599,7 @@ pub fn relative_pose(
     };
     let mut rng = ChaCha8Rng::seed_from_u64(ransac.seed);
     let mut best: Option<Model> = None;
-    let mut needed = ransac.max_iterations;
+    let mut needed = adaptive_iterations(0, ransac.min_inliers, n, 5, ransac.confidence);
     let mut iterations = 0;
     let mut inliers: Vec<usize> = Vec::with_capacity(n);
     let mut sample = [0usize; 5];
@@ -642,7 +629,8 @@ pub fn relative_pose(
                 model = local_optimization(&scorer, model, &lo_options, &mut inliers);
             }
             scorer.inliers(&model, &mut inliers);
-            needed = adaptive_iterations(inliers.len(), n, 5, ransac.confidence);
+            needed =
+                adaptive_iterations(inliers.len(), ransac.min_inliers, n, 5, ransac.confidence);
             best = Some(model);
         }
     }
@@ -1015,7 +1003,7 @@ impl Selection<'_> {
             let cost = self.msac(&model, error, bound);
             if cost < bound {
                 self.collect(&model, error, self.subset, &mut inliers);
-                needed = adaptive_iterations(inliers.len(), m, K as i32, 0.999);
+                needed = adaptive_iterations(inliers.len(), 0, m, K as i32, 0.999);
                 best = Some((model, cost));
             }
         }
