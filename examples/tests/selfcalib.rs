@@ -340,16 +340,17 @@ fn a_built_map_calibrates_a_moved_rig_as_well_as_the_true_map() {
 
 /// TrimBot2020's ten-camera pentagon (five stereo pairs of 82-degree pinholes) in the garden,
 /// 100 frames of its drive, against the issue's bars. **Not met yet** (opt-in): measured
-/// 2026-12-03 0.0079 deg / 0.56 mm worst camera after scale alignment in 4 rounds (COLMAP
-/// 0.0030 / 0.51 with perfect tracks; TrimBot2020 0.5 deg / 1.9 mm), 29 s wall and 50 s CPU for
-/// the test binary on 2 cores (simulation included; the tracks, 15,417 candidate pairs for 1000
-/// images, are 23 s of the wall time). The errors grow with the distance from camera 0 and stay
+/// 2026-12-03 0.0079 deg / 0.57 mm worst camera after scale alignment in 4 rounds (COLMAP
+/// 0.0030 / 0.51 with perfect tracks; TrimBot2020 0.5 deg / 1.9 mm), 21 s wall and 35 s CPU for
+/// the test binary on 2 cores (simulation included; 15,417 candidate pairs for 1000 images;
+/// 50 s CPU before the verification stopped searching pairs that hold no model of 30 inliers).
+/// The errors grow with the distance from camera 0 and stay
 /// within 2.3 of the reported standard deviations (0.0034-0.0036 deg for pairs 2-4): the tracks
 /// found (143k observations of 14k points) determine no more than that, so the 0.003 deg bar is
 /// below one standard deviation of this data. Run with `cargo test -p ibc-pipeline --release
 /// --test selfcalib -- --ignored pentagon --nocapture`.
 #[test]
-#[ignore = "not met yet: 0.0079 deg / 0.56 mm (4 rounds), 50 s CPU (issue 17's closing note)"]
+#[ignore = "not met yet: 0.0079 deg / 0.57 mm (4 rounds; 35 s CPU), see BENCHMARKS.md, issue 17"]
 fn pentagon_rig_in_the_garden() {
     let world = world("garden-pentagon", 1.0 / 3.0, None);
     let result = self_calibrate(

@@ -81,7 +81,9 @@ pub struct SelfCalibrationOptions {
     pub triangulation: TriangulationOptions,
     /// Robust loss of the bundle adjustment. Default Cauchy with a scale of 1 pixel.
     pub loss: RobustLoss,
-    /// Solver of the bundle adjustment. Default [`SolverOptions::default`].
+    /// Solver of the bundle adjustment. Default the rig bundle adjustment's
+    /// ([`RigBundleAdjustmentOptions::default`]: Ceres's, with the loss's curvature kept for
+    /// the inliers).
     pub solver: SolverOptions,
     /// An observation reprojecting farther than this from its keypoint after triangulation is
     /// left out of the next adjustment, pixels. Default 3 (six standard deviations of 0.5 px
@@ -118,7 +120,7 @@ impl Default for SelfCalibrationOptions {
             translation_averaging: TranslationAveragingOptions::default(),
             triangulation: TriangulationOptions::default(),
             loss: RobustLoss::Cauchy { scale: 1.0 },
-            solver: SolverOptions::default(),
+            solver: RigBundleAdjustmentOptions::default().solver,
             outlier_threshold_px: 3.0,
             max_rounds: 5,
             change_tolerance: 0.5,

@@ -27,7 +27,7 @@ use ibc_vocab_tree::{
     Database, Descriptor, FeatureVector, MatchOptions, QueryOptions, TrainingOptions, Vocabulary,
     match_by_nodes,
 };
-use nalgebra::{Isometry3, Vector3};
+use nalgebra::{Isometry3, Translation3, Vector3};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
@@ -109,7 +109,8 @@ pub struct VerifiedPair {
     pub a: usize,
     /// The second image.
     pub b: usize,
-    /// `b_from_a`, translation of unit length (or zero for a pure rotation).
+    /// `b_from_a`, translation of unit length (or zero where the direction is not determined:
+    /// a pure rotation or too little parallax).
     pub b_from_a: Isometry3<f64>,
     /// Whether the translation direction is determined (an essential or planar model with
     /// parallax); a pure rotation or too little parallax gives the rotation only.
@@ -349,27 +350,30 @@ fn verify_pair<D: Descriptor>(
     let mut pose_options = options.relative_pose.clone();
     pose_options.ransac.seed = mix(mix(options.seed ^ mix(a as u64)) ^ b as u64);
     pose_options.ransac.min_inliers = options.min_inliers.max(pose_options.ransac.min_inliers);
-    // Too little parallax still gives a rotation; its inliers come from a second call without
-    // the parallax check.
-    let (pose, has_direction) = match relative_pose(&xa, &xb, &pose_options) {
+    // Too little parallax still gives a rotation and its inliers (the parallax is checked
+    // after the search, so they are those a search without the check would find).
+    let (b_from_a, inliers, has_direction) = match relative_pose(&xa, &xb, &pose_options) {
         Ok(p) => {
             let direction = !matches!(p.model, TwoViewModel::PureRotation);
-            (p, direction)
+            (p.b_from_a, p.inliers, direction)
         }
-        Err(RelativePoseError::InsufficientParallax { .. }) => {
-            pose_options.min_parallax = 0.0;
-            (relative_pose(&xa, &xb, &pose_options).ok()?, false)
-        }
+        Err(RelativePoseError::InsufficientParallax {
+            rotation, inliers, ..
+        }) => (
+            Isometry3::from_parts(Translation3::identity(), rotation),
+            inliers,
+            false,
+        ),
         Err(_) => return None,
     };
-    if pose.inliers.len() < options.min_inliers {
+    if inliers.len() < options.min_inliers {
         return None;
     }
-    let matches = pose.inliers.iter().map(|&k| keypoints[k]).collect();
+    let matches = inliers.iter().map(|&k| keypoints[k]).collect();
     Some(VerifiedPair {
         a,
         b,
-        b_from_a: pose.b_from_a,
+        b_from_a,
         has_direction,
         matches,
     })
