@@ -226,6 +226,13 @@ fn bad_input_is_a_typed_error() {
             },
             "max_rounds",
         ),
+        (
+            SelfCalibrationOptions {
+                intermediate_function_tolerance: f64::NAN,
+                ..Default::default()
+            },
+            "intermediate_function_tolerance",
+        ),
     ] {
         let error = self_calibrate(&world.log, &all, &options).expect_err("invalid option");
         assert!(

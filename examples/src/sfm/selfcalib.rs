@@ -107,6 +107,13 @@ pub struct SelfCalibrationOptions {
     pub translation_tolerance: f64,
     /// The metric scale. Default [`ScaleSource::Auto`].
     pub scale: ScaleSource,
+    /// With known extrinsics held (a map being built), the relative cost change at which the
+    /// adjustment of a round that is not the last stops (default 1e-4; the last round uses
+    /// the solver's own `function_tolerance`). The next round re-triangulates every track and
+    /// adjusts again from where this one stopped, so polishing an intermediate solution to
+    /// the solver's 1e-6 only costs iterations. Unused when the extrinsics are estimated,
+    /// whose rounds are compared with their standard deviations.
+    pub intermediate_function_tolerance: f64,
     /// Keeps the struct open to new fields: build it with `..Default::default()`.
     #[doc(hidden)]
     pub non_exhaustive: NonExhaustive,
@@ -127,6 +134,7 @@ impl Default for SelfCalibrationOptions {
             rotation_tolerance: 1e-6,
             translation_tolerance: 1e-5,
             scale: ScaleSource::Auto,
+            intermediate_function_tolerance: 1e-4,
             non_exhaustive: NonExhaustive(()),
         }
     }
@@ -527,6 +535,17 @@ pub(crate) fn reconstruct<D: Descriptor>(
             points: triangulated.points.iter().map(|p| p.coords).collect(),
             observations,
         };
+        // With known extrinsics held, the round that settles the observations (below) or the
+        // last one converges to the solver's tolerance; the others stop earlier.
+        let settles = rounds.last().is_some_and(|previous: &Round| {
+            triangulated.observations.len() <= previous.observations + previous.observations / 1000
+        });
+        let mut solver = options.solver.clone();
+        if held && !last && !settles {
+            solver.function_tolerance = solver
+                .function_tolerance
+                .max(options.intermediate_function_tolerance);
+        }
         let solved = problem
             .solve(&RigBundleAdjustmentOptions {
                 loss: options.loss,
@@ -542,7 +561,7 @@ pub(crate) fn reconstruct<D: Descriptor>(
                     Vec::new()
                 },
                 covariance: !held,
-                solver: options.solver.clone(),
+                solver,
                 ..Default::default()
             })
             .map_err(SelfCalibrationError::BundleAdjustment)?;
@@ -624,12 +643,7 @@ pub(crate) fn reconstruct<D: Descriptor>(
         });
         // With known extrinsics nothing moves them: the rounds stop when the observations
         // admitted settle (fewer than 0.1 % more).
-        let settled = held
-            && rounds.len() >= 2
-            && rounds[rounds.len() - 1].observations
-                <= rounds[rounds.len() - 2].observations
-                    + rounds[rounds.len() - 2].observations / 1000;
-        if settled
+        if (held && settles)
             || (!held && within_uncertainty)
             || (!held
                 && rotation_change <= options.rotation_tolerance
@@ -732,6 +746,17 @@ fn check_options(
             format!(
                 "must be finite and non-negative, got {}",
                 options.change_tolerance
+            ),
+        );
+    }
+    if !(options.intermediate_function_tolerance >= 0.0
+        && options.intermediate_function_tolerance < 1.0)
+    {
+        return invalid(
+            "intermediate_function_tolerance",
+            format!(
+                "must be in [0, 1), got {}",
+                options.intermediate_function_tolerance
             ),
         );
     }
