@@ -261,7 +261,8 @@ fn bad_input_is_a_typed_error() {
 /// The survey phase and the main job on its map: the calibrated car rig drives the garage and
 /// `build_map` reconstructs it; a rig whose left and right cameras then moved 9.7 and 10 cm
 /// drives the same garage and is calibrated against the built map. Bars (issue 17): the
-/// calibration's as against the true map (0.005 deg / 1 mm at sigma 0.5 px), and the map's
+/// calibration's as against the true map (0.005 deg / 1 mm at sigma 0.5 px, or as well as
+/// the true map itself does at this size, see the assertion), and the map's
 /// points within a stated error of the truth: median 2.3 cm, 90th percentile 27 cm measured
 /// (points 10-20 m from a drive without loop closure; asserted at 5 and 50 cm). The survey and
 /// the calibration drive follow the same path (two simulations of one seed with different
@@ -332,17 +333,26 @@ fn a_built_map_calibrates_a_moved_rig_as_well_as_the_true_map() {
         &CalibrationOptions::default(),
     )
     .expect("calibration against the true map");
-    for (label, c) in [("built map", &calibration), ("true map", &against_true_map)] {
+    let worst = |label: &str, c: &ibc_pipeline::calib::Calibration| {
         let errors = extrinsic_errors(&c.rig_from_camera, &moved.truth.rig_from_camera, false);
         let deg = errors.iter().map(|e| e.0.to_degrees()).fold(0.0, f64::max);
         let mm = errors.iter().map(|e| e.1 * 1e3).fold(0.0, f64::max);
         println!("calibration against the {label}: worst {deg:.5} deg / {mm:.3} mm");
-        // The bar is the built map's; against the true map at this size (100 frames) the
-        // same calibration measured 0.0053 deg / 0.59 mm, printed for comparison.
-        if label == "built map" {
-            assert!(deg <= 0.005 && mm <= 1.0, "{label}: {deg} deg / {mm} mm");
-        }
-    }
+        (deg, mm)
+    };
+    let (deg, mm) = worst("built map", &calibration);
+    let (true_deg, true_mm) = worst("true map", &against_true_map);
+    // The bar is the built map's: the true map's (0.005 deg / 1 mm), or, since at this size
+    // (100 frames) the calibration's own spread is of the bar's order, within half as much
+    // again as the true map's own result. Measured 2026-12-03: against the true map
+    // 0.0053 deg / 0.59 mm; against maps built with five verification seeds, uniform or
+    // progressive sampling, 0.0026-0.0061 deg / 0.28-0.75 mm, where the maps themselves
+    // agreed to a millimetre (point errors median 22.5-23.8 mm, rig positions median
+    // 1.2-2.9 mm).
+    assert!(
+        deg <= 0.005_f64.max(1.5 * true_deg) && mm <= 1.0_f64.max(1.5 * true_mm),
+        "built map: {deg} deg / {mm} mm (true map: {true_deg} deg / {true_mm} mm)"
+    );
 }
 
 /// TrimBot2020's ten-camera pentagon (five stereo pairs of 82-degree pinholes) in the garden,

@@ -11,6 +11,7 @@ mod homography;
 mod information;
 mod loss;
 mod p3p;
+mod prosac;
 mod ransac;
 mod refine;
 mod relative_pose;

@@ -28,7 +28,9 @@
 //! `ln(1 - confidence) / ln(1 - w^5)` (`w` the best inlier ratio, no lower than
 //! `min_inliers / n`: a pair without a model of `min_inliers` is rejected after the samples
 //! that would have found one), and each new best pose is refined on its inliers
-//! (local optimization). The best pose is refined on all its inliers until they are stable
+//! (local optimization). With correspondences ordered best first
+//! ([`RelativePoseOptions::progressive`]), samples are drawn progressively from the best and
+//! the search stops by PROSAC's rule (O. Chum and J. Matas, "Matching with PROSAC", CVPR 2005). The best pose is refined on all its inliers until they are stable
 //! ([`refine_relative_pose`]: Levenberg-Marquardt on the Sampson error over the rotation
 //! on SO(3) and the translation direction on S^2, five degrees of freedom).
 //!
@@ -65,6 +67,7 @@ use crate::error::PnpError;
 use crate::five_point::{depths, rotations_and_translation, solve};
 use crate::geometry::{isometry_from, rotation_from_correlation};
 use crate::homography::{self as homography_mod, PlanarPose};
+use crate::prosac::{ProsacSampler, prosac_iterations};
 use crate::ransac::{RansacOptions, adaptive_iterations};
 use crate::refine::RefineOptions;
 use crate::relative_pose_error::{RelativePoseError, RelativeResult, check_bearing_pairs};
@@ -89,6 +92,10 @@ const LO_ROUNDS: usize = 2;
 const LO_ITERATIONS: usize = 5;
 /// Rounds of the final refit (refine on the inliers, recollect them).
 const FINAL_ROUNDS: usize = 4;
+/// Rounds of the final refit after a progressive search: a model found after few samples
+/// can need more rounds before its inlier set is stable (measured: with 4, 2 of 30 trials at
+/// 50 % outliers ended 3e-3 rad from the optimum of their inliers; with 10, none).
+const FINAL_ROUNDS_PROGRESSIVE: usize = 10;
 /// Most samples of the homography and rotation fits of model selection (their inlier ratio
 /// within the essential matrix's inliers is high when they are the right model).
 const SELECTION_ITERATIONS: usize = 100;
@@ -113,6 +120,14 @@ pub struct RelativePoseOptions {
     /// homography model; below it the result is [`RelativePoseError::InsufficientParallax`].
     /// 0 disables the check. Default [`RELATIVE_POSE_MIN_PARALLAX`] (1 degree).
     pub min_parallax: f64,
+    /// The correspondences come ordered best first (for example by descriptor distance, the
+    /// most distinctive match first): sample progressively from the best and stop by
+    /// PROSAC's rule (Chum and Matas, CVPR 2005; see `prosac.rs`), which ends the search as
+    /// soon as a prefix of the order holds enough inliers (at least `min_inliers`, not by
+    /// chance) for the samples drawn to have found its model at the stated confidence. With
+    /// an order that says nothing of the inliers it is RANSAC. Default false (uniform
+    /// sampling, RANSAC's count).
+    pub progressive: bool,
     /// Keeps the struct open to new fields: write it with `..Default::default()`.
     #[doc(hidden)]
     pub non_exhaustive: NonExhaustive,
@@ -127,6 +142,7 @@ impl Default for RelativePoseOptions {
             },
             model_selection: true,
             min_parallax: RELATIVE_POSE_MIN_PARALLAX,
+            progressive: false,
             non_exhaustive: NonExhaustive::VALUE,
         }
     }
@@ -600,6 +616,7 @@ pub fn relative_pose(
     let mut rng = ChaCha8Rng::seed_from_u64(ransac.seed);
     let mut best: Option<Model> = None;
     let mut needed = adaptive_iterations(0, ransac.min_inliers, n, 5, ransac.confidence);
+    let mut progressive = options.progressive.then(|| ProsacSampler::new(n, 5));
     let mut iterations = 0;
     let mut inliers: Vec<usize> = Vec::with_capacity(n);
     let mut sample = [0usize; 5];
@@ -609,7 +626,10 @@ pub fn relative_pose(
     };
     while iterations < needed.clamp(ransac.min_iterations, ransac.max_iterations) {
         iterations += 1;
-        sample_distinct(&mut rng, n, &mut sample);
+        match progressive.as_mut() {
+            Some(sampler) => sampler.sample(&mut rng, &mut sample),
+            None => sample_distinct(&mut rng, n, &mut sample),
+        }
         let sa = sample.map(|i| a[i]);
         let sb = sample.map(|i| b[i]);
         let Some(solutions) = solve(&sa, &sb, false) else {
@@ -629,8 +649,11 @@ pub fn relative_pose(
                 model = local_optimization(&scorer, model, &lo_options, &mut inliers);
             }
             scorer.inliers(&model, &mut inliers);
-            needed =
-                adaptive_iterations(inliers.len(), ransac.min_inliers, n, 5, ransac.confidence);
+            needed = if progressive.is_some() {
+                prosac_iterations(&inliers, n, ransac.min_inliers, 5, ransac.confidence)
+            } else {
+                adaptive_iterations(inliers.len(), ransac.min_inliers, n, 5, ransac.confidence)
+            };
             best = Some(model);
         }
     }
@@ -643,7 +666,12 @@ pub fn relative_pose(
     };
     scorer.inliers(&model, &mut inliers);
     if ransac.final_refinement {
-        model = final_refit(&scorer, model, &ransac.refine, &mut inliers);
+        let rounds = if progressive.is_some() {
+            FINAL_ROUNDS_PROGRESSIVE
+        } else {
+            FINAL_ROUNDS
+        };
+        model = final_refit(&scorer, model, &ransac.refine, &mut inliers, rounds);
     }
     if inliers.len() < ransac.min_inliers {
         return Err(RelativePoseError::TooFewInliers {
@@ -885,9 +913,10 @@ fn final_refit(
     mut model: Model,
     options: &RefineOptions,
     inliers: &mut Vec<usize>,
+    rounds: usize,
 ) -> Model {
     let mut previous: Vec<usize> = Vec::new();
-    for _ in 0..FINAL_ROUNDS {
+    for _ in 0..rounds {
         if inliers.len() < RELATIVE_POSE_MIN_POINTS || *inliers == previous {
             break;
         }

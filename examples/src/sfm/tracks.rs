@@ -58,8 +58,11 @@ pub struct TrackOptions {
     pub ratio: f64,
     /// Fewest verified matches for a pair to count. Default 30.
     pub min_inliers: usize,
-    /// Options of the geometric verification; its seed is mixed with each pair's images.
-    /// Default [`RelativePoseOptions::default`].
+    /// Options of the geometric verification; its seed is mixed with each pair's images. With
+    /// [`RelativePoseOptions::progressive`] the matches are passed best first (smallest
+    /// descriptor distance) and sampled progressively (PROSAC), as
+    /// [`super::MapOptions::default`] does. Default [`RelativePoseOptions::default`] with at
+    /// most 2000 iterations.
     pub relative_pose: RelativePoseOptions,
     /// Descriptors that train the vocabulary (a seeded sample, the same number from every
     /// image). Default 50,000.
@@ -115,7 +118,7 @@ pub struct VerifiedPair {
     /// Whether the translation direction is determined (an essential or planar model with
     /// parallax); a pure rotation or too little parallax gives the rotation only.
     pub has_direction: bool,
-    /// Inlier matches: (keypoint in a, keypoint in b).
+    /// Inlier matches: (keypoint in a, keypoint in b), in keypoint order.
     pub matches: Vec<(u32, u32)>,
 }
 
@@ -332,7 +335,16 @@ fn verify_pair<D: Descriptor>(
     matching: &MatchOptions,
     options: &TrackOptions,
 ) -> Option<VerifiedPair> {
-    let found = match_by_nodes(desc_a, fv_a, desc_b, fv_b, matching).ok()?;
+    let mut found = match_by_nodes(desc_a, fv_a, desc_b, fv_b, matching).ok()?;
+    if options.relative_pose.progressive {
+        // Best first, for the progressive sampling (ties by keypoint: deterministic).
+        found.sort_by(|x, y| {
+            x.distance
+                .total_cmp(&y.distance)
+                .then(x.query.cmp(&y.query))
+                .then(x.train.cmp(&y.train))
+        });
+    }
     let mut keypoints = Vec::with_capacity(found.len());
     let (mut xa, mut xb) = (Vec::new(), Vec::new());
     for m in &found {
@@ -369,7 +381,8 @@ fn verify_pair<D: Descriptor>(
     if inliers.len() < options.min_inliers {
         return None;
     }
-    let matches = inliers.iter().map(|&k| keypoints[k]).collect();
+    let mut matches: Vec<(u32, u32)> = inliers.iter().map(|&k| keypoints[k]).collect();
+    matches.sort_unstable();
     Some(VerifiedPair {
         a,
         b,
