@@ -15,17 +15,17 @@
 //! found an all-inlier sample of `U_n` at the stated confidence: `t >= k_n` with
 //! `k_n = ln(1 - confidence) / ln(1 - (I_n / n)^m)`; the prefix `U_N` gives RANSAC's count.
 //! Non-randomness: `I_n >= m + mu + z sigma`, the normal approximation (the paper's) of the
-//! binomial tail of the support of a wrong model (and, here, at least the caller's
-//! `min_inliers`), `mu = (n - m) beta`,
+//! binomial tail of the support of a wrong model, `mu = (n - m) beta`,
 //! `sigma^2 = (n - m) beta (1 - beta)`, `z = 1.645` (probability 0.05), with `beta` =
-//! [`PROSAC_BETA`], the chance that a random correspondence supports a wrong model.
-//! The guarantee is the paper's: with the stated confidence no model with more inliers in
+//! [`PROSAC_BETA`], the chance that a random correspondence supports a wrong model; and,
+//! here, `I_n >= min_inliers`, the caller's smallest acceptable model. The guarantee is the
+//! paper's: with the stated confidence no model with more inliers in
 //! `U_n` was missed; with an order that says nothing of the inliers, PROSAC is RANSAC.
 
-use rand::RngExt;
 use rand_chacha::ChaCha8Rng;
 
 use crate::ransac::adaptive_iterations;
+use crate::relative_pose::sample_distinct;
 
 /// `T_N`, the number of samples after which the progressive sampling is RANSAC's (the
 /// paper's value).
@@ -79,24 +79,11 @@ impl ProsacSampler {
             self.n += 1;
         }
         if self.t_prime < self.t || self.n == self.size {
-            distinct(rng, self.n, out);
+            sample_distinct(rng, self.n, out);
         } else {
             let (last, rest) = (self.n - 1, self.size - 1);
-            distinct(rng, last, &mut out[..rest]);
+            sample_distinct(rng, last, &mut out[..rest]);
             out[rest] = last;
-        }
-    }
-}
-
-/// `out.len()` distinct indices below `n` (`n >= out.len()`).
-fn distinct(rng: &mut ChaCha8Rng, n: usize, out: &mut [usize]) {
-    for k in 0..out.len() {
-        loop {
-            let candidate = rng.random_range(0..n);
-            if !out[..k].contains(&candidate) {
-                out[k] = candidate;
-                break;
-            }
         }
     }
 }

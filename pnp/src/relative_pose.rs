@@ -30,7 +30,8 @@
 //! that would have found one), and each new best pose is refined on its inliers
 //! (local optimization). With correspondences ordered best first
 //! ([`RelativePoseOptions::progressive`]), samples are drawn progressively from the best and
-//! the search stops by PROSAC's rule (O. Chum and J. Matas, "Matching with PROSAC", CVPR 2005). The best pose is refined on all its inliers until they are stable
+//! the search stops by PROSAC's rule (O. Chum and J. Matas, "Matching with PROSAC", CVPR
+//! 2005). The best pose is refined on all its inliers until they are stable
 //! ([`refine_relative_pose`]: Levenberg-Marquardt on the Sampson error over the rotation
 //! on SO(3) and the translation direction on S^2, five degrees of freedom).
 //!
@@ -570,7 +571,7 @@ impl Scorer<'_> {
 }
 
 /// `count` distinct indices below `n` into `out` (`n >= count`).
-fn sample_distinct(rng: &mut ChaCha8Rng, n: usize, out: &mut [usize]) {
+pub(crate) fn sample_distinct(rng: &mut ChaCha8Rng, n: usize, out: &mut [usize]) {
     for k in 0..out.len() {
         loop {
             let candidate = rng.random_range(0..n);
