@@ -275,6 +275,13 @@ pub struct RigBundleAdjustmentResult {
     /// Uncertainty and observability of every free camera parameter, camera by camera,
     /// extrinsic then intrinsics (empty without [`RigBundleAdjustmentOptions::covariance`]).
     pub observability: Vec<ParameterObservability>,
+    /// Why the covariance asked for by [`RigBundleAdjustmentOptions::covariance`] could not
+    /// be computed, when it could not: [`BundleAdjustError::SingularInformation`] when the
+    /// parameters marginalized out (rig poses, points, held-back intrinsics) are not
+    /// determined, so that no marginal covariance of the cameras exists. The adjusted values
+    /// are still returned; [`Self::extrinsic_covariance`], [`Self::intrinsic_covariance`]
+    /// and [`Self::observability`] are then empty.
+    pub covariance_error: Option<BundleAdjustError>,
     /// Root-mean-square reprojection error (pixels) at the start, over the observations used.
     pub initial_rms: f64,
     /// Root-mean-square reprojection error (pixels) at the solution.
@@ -795,8 +802,8 @@ impl RigBundleAdjustment {
     /// [`BundleAdjustError::PointWithoutObservations`] or
     /// [`BundleAdjustError::PointSeenOnce`] naming what the observations do not determine;
     /// [`BundleAdjustError::RefinedIntrinsicsRejected`]; the errors of [`Problem::solve`];
-    /// with [`RigBundleAdjustmentOptions::covariance`],
-    /// [`BundleAdjustError::SingularInformation`] when the rig poses are not determined.
+    /// a covariance that cannot be computed is not an error: see
+    /// [`RigBundleAdjustmentResult::covariance_error`].
     pub fn solve(&self, options: &RigBundleAdjustmentOptions) -> Result<RigBundleAdjustmentResult> {
         let Compiled {
             mut problem,
@@ -843,6 +850,7 @@ impl RigBundleAdjustment {
             extrinsic_covariance: vec![None; self.cameras.len()],
             intrinsic_covariance: vec![None; self.cameras.len()],
             observability: Vec::new(),
+            covariance_error: None,
             cameras,
             rig_from_camera,
             world_from_rig,
@@ -861,8 +869,17 @@ impl RigBundleAdjustment {
                     Some(&EXTRINSIC_NAMES[..])
                 }
             });
+            // The adjustment stands without its covariance: a marginalization that fails
+            // is reported with the result, not instead of it.
             let (observability, covariances) =
-                analyse_camera_blocks(&problem, &blocks, &result.cameras, &options.solver)?;
+                match analyse_camera_blocks(&problem, &blocks, &result.cameras, &options.solver) {
+                    Ok(analysis) => analysis,
+                    Err(e @ BundleAdjustError::SingularInformation) => {
+                        result.covariance_error = Some(e);
+                        return Ok(result);
+                    }
+                    Err(e) => return Err(e),
+                };
             result.observability = observability;
             for (block, cov) in blocks.iter().zip(covariances) {
                 let (c, Some(cov)) = (block.camera, cov) else {

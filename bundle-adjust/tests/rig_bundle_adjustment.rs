@@ -633,3 +633,63 @@ fn bad_input_is_a_typed_error() {
         BundleAdjustError::InvalidOption { name: "scale", .. }
     ));
 }
+
+/// A point that the observations do not place (seen twice along one ray: no parallax, its
+/// depth free) makes the marginal covariance of the cameras undefined: the adjustment is
+/// still returned, as accurate as without that point, with the reason instead of the
+/// covariance.
+#[test]
+fn an_undetermined_point_loses_the_covariance_not_the_adjustment() {
+    let w = world(18, 40.0, 24, 0.3);
+    let options = RigBundleAdjustmentOptions {
+        scale: ScaleGauge::Baseline {
+            camera: 2,
+            distance_m: baseline(&w, 2),
+        },
+        covariance: true,
+        ..Default::default()
+    };
+    let full = solve(&w, &options);
+    assert!(full.covariance_error.is_none());
+    assert!(
+        full.extrinsic_covariance
+            .iter()
+            .skip(1)
+            .all(Option::is_some)
+    );
+
+    // A point 4 m in front of the front camera at frame 5, seen by it twice.
+    let mut p = w.start.clone();
+    let camera = &w.truth_cameras[0];
+    let world_from_camera = w.truth_world_from_rig[5] * w.truth_rig_from_camera[0];
+    let x = world_from_camera * nalgebra::Point3::new(0.3, -0.2, 4.0);
+    let pixel = camera
+        .project(&(world_from_camera.inverse() * x).coords)
+        .unwrap();
+    let point = p.points.len();
+    p.points.push(x.coords);
+    for _ in 0..2 {
+        p.observations.push(RigBaObservation {
+            frame: 5,
+            camera: 0,
+            point,
+            pixel,
+        });
+    }
+    let r = p.solve(&options).unwrap();
+    assert!(
+        matches!(
+            r.covariance_error,
+            Some(BundleAdjustError::SingularInformation)
+        ),
+        "{:?}",
+        r.covariance_error
+    );
+    assert!(r.extrinsic_covariance.iter().all(Option::is_none));
+    assert!(r.observability.is_empty());
+    // The rest determines the extrinsics as before.
+    for (a, b) in r.rig_from_camera.iter().zip(&full.rig_from_camera) {
+        assert!((a.translation.vector - b.translation.vector).norm() < 1e-6);
+        assert!(a.rotation.angle_to(&b.rotation) < 1e-7);
+    }
+}

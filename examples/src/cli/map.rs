@@ -135,6 +135,7 @@ fn run_with<D: MapDescriptor>(args: &MapArgs, bars: &Bars) -> Result<Outcome, Cl
         "verified_pairs": built.tracks.verified_pairs,
         "extrinsics": if args.refine_extrinsics { "refined" } else { "held" },
         "cameras": moved,
+        "covariance_error": built.covariance_error,
     });
     if args.json {
         print(&(serde_json::to_string_pretty(&summary).unwrap_or_default() + "\n"))?;
@@ -156,6 +157,11 @@ fn run_with<D: MapDescriptor>(args: &MapArgs, bars: &Bars) -> Result<Outcome, Cl
                 m["name"].as_str().unwrap_or("?"),
                 m["moved_mm"].as_f64().unwrap_or(f64::NAN),
                 m["turned_deg"].as_f64().unwrap_or(f64::NAN)
+            ))?;
+        }
+        if let Some(reason) = &built.covariance_error {
+            print(&format!(
+                "the refined extrinsics have no standard deviations: {reason}\n"
             ))?;
         }
     }

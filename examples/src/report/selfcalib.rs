@@ -96,7 +96,7 @@ pub struct RoundJson {
 /// A warning of the report.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct SelfCalibWarning {
-    /// Its kind (`scale_unknown`, `not_converged`).
+    /// Its kind (`scale_unknown`, `not_converged`, `no_covariance`).
     pub kind: &'static str,
     /// The message.
     pub message: String,
@@ -178,6 +178,16 @@ impl SelfCalibrationReport {
                 ),
             });
         }
+        if let Some(reason) = &result.covariance_error {
+            warnings.push(SelfCalibWarning {
+                kind: "no_covariance",
+                message: format!(
+                    "the extrinsics have no standard deviations ({reason}): whether the data \
+                     determines each of them is not known, and the rounds stopped on the \
+                     fixed tolerances"
+                ),
+            });
+        }
         let cameras_json = names
             .iter()
             .zip(cameras)
@@ -227,7 +237,11 @@ impl SelfCalibrationReport {
             },
             translation_unit: if unknown { "unknown" } else { "m" },
             cameras: cameras_json,
-            status: if result.converged { "ok" } else { "poor" },
+            status: if result.converged && result.covariance_error.is_none() {
+                "ok"
+            } else {
+                "poor"
+            },
             warnings,
             frames: result.world_from_rig.len(),
             frames_posed: result.world_from_rig.iter().flatten().count(),
@@ -398,4 +412,59 @@ pub fn self_calibration_top_view(result: &SelfCalibration, rig: &Rig) -> String 
         rig_from_camera: &result.rig_from_camera,
         camera_names: &names,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sfm::{ScaleEstimate, TrackStats};
+    use ibc_camera_models::PinholeRadtan;
+    use nalgebra::Vector3;
+
+    fn result(covariance_error: Option<String>) -> SelfCalibration {
+        let pose = Isometry3::translation(0.5, 0.0, 0.0);
+        SelfCalibration {
+            rig_from_camera: vec![Isometry3::identity(), pose],
+            initial_rig_from_camera: vec![Isometry3::identity(), pose],
+            world_from_rig: vec![Some(Isometry3::identity())],
+            points: vec![Vector3::new(0.0, 0.0, 5.0).into()],
+            extrinsic_covariance: vec![None, None],
+            covariance_error,
+            scale: ScaleEstimate::Baseline,
+            rounds: Vec::new(),
+            converged: true,
+            tracks: TrackStats {
+                images: 2,
+                candidate_pairs: 1,
+                verified_pairs: 1,
+                cross_camera_pairs: 1,
+                tracks: 1,
+                inconsistent_tracks: 0,
+            },
+        }
+    }
+
+    /// A self-calibration whose covariance could not be computed is not trusted: status
+    /// `poor` with a `no_covariance` warning that carries the reason.
+    #[test]
+    fn a_result_without_covariance_is_poor_and_says_why() {
+        let names = vec!["a".to_string(), "b".to_string()];
+        let camera = Camera::PinholeRadtan(
+            PinholeRadtan::new(640, 480, [0.0, 0.0, 0.0, 0.0, 400.0, 400.0, 320.0, 240.0])
+                .expect("a valid pinhole"),
+        );
+        let cameras = vec![camera.clone(), camera];
+        let ok = SelfCalibrationReport::new(&result(None), &names, &cameras, None);
+        assert!(ok.is_ok(), "{:?}", ok.warnings);
+        let reason = "the covariance is undefined: the information matrix is singular";
+        let poor = SelfCalibrationReport::new(&result(Some(reason.into())), &names, &cameras, None);
+        assert!(!poor.is_ok());
+        let w = poor
+            .warnings
+            .iter()
+            .find(|w| w.kind == "no_covariance")
+            .expect("a no_covariance warning");
+        assert!(w.message.contains(reason), "{}", w.message);
+        assert!(poor.text_table().contains("no_covariance"));
+    }
 }

@@ -78,6 +78,9 @@ pub struct BuiltMap<D> {
     /// [`super::SelfCalibration::extrinsic_covariance`]; `None` for camera 0, the gauge); else
     /// all `None`.
     pub extrinsic_covariance: Vec<Option<Matrix6<f64>>>,
+    /// With refined extrinsics, why they have no covariance
+    /// ([`super::SelfCalibration::covariance_error`]); else `None`.
+    pub covariance_error: Option<String>,
 }
 
 /// Builds a map from the survey `log` of the calibrated `rig` (its cameras in the log's order;
@@ -147,5 +150,6 @@ pub fn build_map<D: Descriptor>(
         tracks: result.tracks,
         rig_from_camera: result.rig_from_camera,
         extrinsic_covariance: result.extrinsic_covariance,
+        covariance_error: result.covariance_error,
     })
 }

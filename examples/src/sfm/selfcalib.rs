@@ -226,6 +226,12 @@ pub struct SelfCalibration {
     /// variance factor 2 cost / (residuals - unknowns), so it is for the log's own pixel noise;
     /// `None` for camera 0 (the gauge) or when it could not be computed.
     pub extrinsic_covariance: Vec<Option<Matrix6<f64>>>,
+    /// Why the last adjustment gave no covariance of the estimated extrinsics (for example
+    /// "the covariance is undefined: the information matrix is singular", when some point or
+    /// rig pose it marginalizes out is not determined); `None` when it did, or when the
+    /// extrinsics were held. Without it the rounds' convergence falls back to the fixed
+    /// tolerances and the result has no standard deviations.
+    pub covariance_error: Option<String>,
     /// How the scale was fixed.
     pub scale: ScaleEstimate,
     /// The rounds of triangulation and adjustment.
@@ -476,6 +482,7 @@ pub(crate) fn reconstruct<D: Descriptor>(
     let mut converged = false;
     let mut points = Vec::new();
     let mut covariance = vec![None; cameras.len()];
+    let mut covariance_error = None;
     // Each track's point from the last adjustment: the next round starts from it.
     let mut track_points: Vec<Option<Point3<f64>>> = vec![None; tracks.tracks.len()];
     let mut final_observations = Vec::new();
@@ -585,6 +592,17 @@ pub(crate) fn reconstruct<D: Descriptor>(
             2.0 * solved.summary.final_cost / (residuals - unknowns) as f64
         } else {
             f64::NAN
+        };
+        covariance_error = if held {
+            None
+        } else if let Some(e) = &solved.covariance_error {
+            Some(e.to_string())
+        } else if !variance.is_finite() {
+            Some(format!(
+                "{residuals} residuals for {unknowns} unknowns: no noise level to scale it by"
+            ))
+        } else {
+            None
         };
         let scaled: Vec<Option<Matrix6<f64>>> = solved
             .extrinsic_covariance
@@ -716,6 +734,7 @@ pub(crate) fn reconstruct<D: Descriptor>(
                 .map(|p| Point3::from(p.coords * factor))
                 .collect(),
             extrinsic_covariance,
+            covariance_error,
             scale,
             rounds,
             converged,
