@@ -10,8 +10,8 @@ use ibc_pipeline::data::RigLog;
 use ibc_pipeline::ibc_camera_models::Camera;
 use ibc_pipeline::nalgebra::Isometry3;
 use ibc_pipeline::sfm::{
-    ScaleEstimate, ScaleSource, SelfCalibration, SelfCalibrationError, SelfCalibrationOptions,
-    extrinsic_errors, self_calibrate,
+    OdometryDistances, ScaleEstimate, ScaleSource, SelfCalibration, SelfCalibrationError,
+    SelfCalibrationOptions, extrinsic_errors, self_calibrate,
 };
 use ibc_pipeline::sim::{Scenario, SimulatedWorld};
 
@@ -232,6 +232,26 @@ fn bad_input_is_a_typed_error() {
                 ..Default::default()
             },
             "intermediate_function_tolerance",
+        ),
+        (
+            SelfCalibrationOptions {
+                odometry_distances: Some(OdometryDistances {
+                    relative_sigma: 0.0,
+                    ..Default::default()
+                }),
+                ..Default::default()
+            },
+            "odometry_distances.relative_sigma",
+        ),
+        (
+            SelfCalibrationOptions {
+                odometry_distances: Some(OdometryDistances {
+                    max_turn_rad: f64::INFINITY,
+                    ..Default::default()
+                }),
+                ..Default::default()
+            },
+            "odometry_distances.max_turn_rad",
         ),
     ] {
         let error = self_calibrate(&world.log, &all, &options).expect_err("invalid option");

@@ -310,6 +310,15 @@ pub enum ViewingGraphError {
         found: usize,
     },
 
+    /// A distance given to translation averaging ([`crate::TimeDistance`]) is not usable.
+    #[error("distance {index}: {reason}")]
+    InvalidDistance {
+        /// Its position in the list given.
+        index: usize,
+        /// What is wrong.
+        reason: &'static str,
+    },
+
     /// A rotation given to translation averaging is not a finite unit quaternion.
     #[error("rotation {index} has norm {norm}: rotations must be finite unit quaternions")]
     InvalidRotation {

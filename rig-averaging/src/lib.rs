@@ -37,8 +37,9 @@ pub use scoring::{
     DEFAULT_FAILURE_PENALTY_PX, ImageScore, ImageScorer, Observation, ObservationScorer,
 };
 pub use translation_averaging::{
-    DIRECTION_SCALE_FACTOR, RigTranslationAveraging, ScaleGauge, TranslationAveraging,
-    TranslationAveragingOptions, rig_translation_averaging, translation_averaging,
+    DIRECTION_SCALE_FACTOR, RigTranslationAveraging, ScaleGauge, TimeDistance,
+    TranslationAveraging, TranslationAveragingOptions, rig_translation_averaging,
+    rig_translation_averaging_with_distances, translation_averaging,
 };
 pub use viewing_graph::{
     AveragingReport, Component, DirectionEdge, RigLayout, RigView, RotationEdge,

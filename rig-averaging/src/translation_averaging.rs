@@ -38,6 +38,17 @@
 //! known (from [`rig_rotation_averaging`](crate::rig_rotation_averaging)): view (t, c) is at
 //! `P_t + W_t l_c`, linear in the unknowns, so the same `p`-step applies with 3x3 blocks.
 //!
+//! **Measured distances** ([`rig_translation_averaging_with_distances`]): directions leave the
+//! spacing of collinear positions free (a straight drive: every edge along it has the same
+//! direction whatever the spacing), which the averaging can then only guess and its solves
+//! converge slowly along. A distance `L` between the rig positions of two times, with its
+//! standard deviation `sigma` (for example the distance the wheel odometry travelled between
+//! two frames of the same heading, where the rig's own origin moved as far), adds the residual
+//! `(|P_b - P_a| - L) s / sigma` with `s` the direction noise (the median direction residual
+//! over 1.1774, per phase) so that both are in the same unit and the same loss; in the
+//! alternation of phase 1 it is `|P_b - P_a - L u|`, `u` the current direction (BATA's
+//! `d`-step with the length known). The distances then fix the scale.
+//!
 //! **Gauge**: the first kept view (rig form: the anchor time's rig position) is at the origin,
 //! the reference camera's lever arm is zero, and the **scale is the caller's**
 //! ([`ScaleGauge`]): by default the mean length of the kept inlier edges is 1; or the distance
@@ -89,6 +100,37 @@ pub enum ScaleGauge {
         /// Their distance (finite, positive), in the caller's unit.
         distance: f64,
     },
+}
+
+/// A measured distance between the rig positions (`world_from_rig` translations) of two
+/// times, for [`rig_translation_averaging_with_distances`].
+///
+/// The rig's origin is the reference camera's centre: a distance travelled by odometry is that
+/// of the rig's origin only where the rig did not turn between the two times (else the lever
+/// arm from the odometry's origin to the rig's adds to it); `sigma` should include that.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TimeDistance {
+    /// The first time.
+    pub from: usize,
+    /// The second time.
+    pub to: usize,
+    /// The distance (finite, positive), in the unit the positions are to have.
+    pub distance: f64,
+    /// Its standard deviation (finite, positive), same unit.
+    pub sigma: f64,
+}
+
+impl TimeDistance {
+    /// A distance `distance` with standard deviation `sigma` between the rig positions of
+    /// times `from` and `to`.
+    pub fn new(from: usize, to: usize, distance: f64, sigma: f64) -> Self {
+        Self {
+            from,
+            to,
+            distance,
+            sigma,
+        }
+    }
 }
 
 /// Options of [`translation_averaging`] and [`rig_translation_averaging`].
@@ -229,6 +271,9 @@ pub struct RigTranslationAveraging {
     pub lever_arms: Vec<Vector3<f64>>,
     /// World position of every view's centre, `P_t + W_t l_c`; `None` for a dropped view.
     pub positions: Vec<Option<Vector3<f64>>>,
+    /// How many of the distances given were used (both times kept with a view of the
+    /// reference camera); when any was, they fixed the scale.
+    pub distances_used: usize,
     /// What was kept, dropped and found.
     pub report: AveragingReport,
 }
@@ -252,7 +297,7 @@ pub fn translation_averaging(
         ..*options
     };
     let rotations = vec![Some(UnitQuaternion::identity()); views];
-    let solved = solve(&layout, &rotations, edges, &options, 2)?;
+    let solved = solve(&layout, &rotations, edges, &[], &options, 2)?;
     Ok(TranslationAveraging {
         positions: solved.positions,
         report: solved.report,
@@ -280,13 +325,64 @@ pub fn rig_translation_averaging(
             reason: "must be a camera of the layout",
         });
     }
-    solve(layout, world_from_rig, edges, options, 0)
+    solve(layout, world_from_rig, edges, &[], options, 0)
+}
+
+/// As [`rig_translation_averaging`], with measured `distances` between the rig positions of
+/// pairs of times (see the module documentation). A distance whose two times are not both kept
+/// with a view of the reference camera is not used; when at least one is, the distances fix
+/// the scale and `options.scale` must be [`ScaleGauge::MeanBaseline`] (the default), which
+/// they replace.
+///
+/// # Errors
+///
+/// As [`rig_translation_averaging`], and [`ViewingGraphError::InvalidDistance`] for a distance
+/// naming a missing time or one time twice, or with a distance or standard deviation that is
+/// not finite and positive; [`ViewingGraphError::InvalidOption`] for distances with
+/// [`ScaleGauge::ViewDistance`].
+pub fn rig_translation_averaging_with_distances(
+    layout: &RigLayout,
+    world_from_rig: &[Option<UnitQuaternion<f64>>],
+    edges: &[DirectionEdge],
+    distances: &[TimeDistance],
+    options: &TranslationAveragingOptions,
+) -> Result<RigTranslationAveraging, ViewingGraphError> {
+    if options.reference_camera >= layout.cameras() {
+        return Err(ViewingGraphError::InvalidOption {
+            option: "reference_camera",
+            reason: "must be a camera of the layout",
+        });
+    }
+    for (index, d) in distances.iter().enumerate() {
+        let reason = if d.from >= layout.times() || d.to >= layout.times() {
+            Some("no such time")
+        } else if d.from == d.to {
+            Some("the two times are the same")
+        } else if !(d.distance.is_finite() && d.distance > 0.0) {
+            Some("the distance must be finite and positive")
+        } else if !(d.sigma.is_finite() && d.sigma > 0.0) {
+            Some("the standard deviation must be finite and positive")
+        } else {
+            None
+        };
+        if let Some(reason) = reason {
+            return Err(ViewingGraphError::InvalidDistance { index, reason });
+        }
+    }
+    if !distances.is_empty() && options.scale != ScaleGauge::MeanBaseline {
+        return Err(ViewingGraphError::InvalidOption {
+            option: "scale",
+            reason: "measured distances fix the scale: leave the gauge at MeanBaseline",
+        });
+    }
+    solve(layout, world_from_rig, edges, distances, options, 0)
 }
 
 fn solve(
     layout: &RigLayout,
     world_from_rig: &[Option<UnitQuaternion<f64>>],
     edges: &[DirectionEdge],
+    distances: &[TimeDistance],
     options: &TranslationAveragingOptions,
     min_degree: usize,
 ) -> Result<RigTranslationAveraging, ViewingGraphError> {
@@ -349,7 +445,30 @@ fn solve(
     let kept = &prepared.component.edges;
     let directions: Vec<Vector3<f64>> = kept.iter().map(|&e| edges[e].direction).collect();
     let base_weights: Vec<f64> = kept.iter().map(|&e| edges[e].weight).collect();
-    let system = prepared.system(&w);
+    // The distances between kept times, as edges between their reference camera's views
+    // (at the rig positions themselves), after the direction edges.
+    let mut reference_view = vec![None; layout.times()];
+    for (k, (&t, &c)) in prepared
+        .view_time
+        .iter()
+        .zip(&prepared.view_camera)
+        .enumerate()
+    {
+        if c == prepared.reference_camera {
+            reference_view[t] = Some(k);
+        }
+    }
+    let mut all_edges = prepared.local_edges.clone();
+    let (mut lengths, mut sigmas) = (Vec::new(), Vec::new());
+    for d in distances {
+        if let (Some(a), Some(b)) = (reference_view[d.from], reference_view[d.to]) {
+            all_edges.push([a, b]);
+            lengths.push(d.distance);
+            sigmas.push(d.sigma);
+        }
+    }
+    let n_distances = lengths.len();
+    let system = prepared.system_with_edges(&w, &all_edges);
     let w = &w;
 
     let mut blocks = vec![Vector3::zeros(); prepared.blocks];
@@ -358,8 +477,23 @@ fn solve(
     let n_edges = kept.len();
     let mut d = vec![1.0; n_edges];
     let mut rho = vec![0.0; n_edges];
-    let mut info = vec![Matrix3::zeros(); n_edges];
-    let mut rhs = vec![Vector3::zeros(); n_edges];
+    let mut info = vec![Matrix3::zeros(); n_edges + n_distances];
+    let mut rhs = vec![Vector3::zeros(); n_edges + n_distances];
+    // The distances' residuals `(|P_b - P_a| - L) s / sigma` in the direction residuals' unit
+    // (`s` the direction noise, per phase).
+    let distance_edges = &all_edges[n_edges..];
+    let mut distance_rho = vec![0.0; n_distances];
+    let mut trial_distance_rho = vec![0.0; n_distances];
+    let distance_residuals = |p: &[Vector3<f64>], noise: f64, out: &mut [f64]| {
+        for (((&[a, b], l), sigma), out) in distance_edges
+            .iter()
+            .zip(&lengths)
+            .zip(&sigmas)
+            .zip(out.iter_mut())
+        {
+            *out = ((p[b] - p[a]).norm() - l) * noise / sigma;
+        }
+    };
     let mut robust_weights = vec![1.0; n_edges];
     let mut scratch = CgScratch::default();
     let (mut linear_iterations, mut linear_converged) = (0, true);
@@ -413,10 +547,27 @@ fn solve(
         converged = false;
         for _ in 0..options.ls_iterations {
             system.view_values(&blocks, &mut positions);
-            if !first {
+            let started = !first;
+            if started {
                 d_step(&positions, &mut d, &mut rho);
             }
             first = false;
+            // The distances, `|P_b - P_a - L u|` with `u` the current direction (none before
+            // the first positions).
+            let noise = direction_noise(&rho);
+            for (m, &[a, b]) in distance_edges.iter().enumerate() {
+                let k = n_edges + m;
+                let delta = positions[b] - positions[a];
+                let length = delta.norm();
+                if !started || length == 0.0 {
+                    info[k] = Matrix3::zeros();
+                    rhs[k] = Vector3::zeros();
+                    continue;
+                }
+                let w = (noise / sigmas[m]).powi(2);
+                info[k] = Matrix3::from_diagonal_element(w);
+                rhs[k] = delta * (lengths[m] * w / length);
+            }
             for k in 0..n_edges {
                 // w d^2 |p_j - p_i - v / d|^2.
                 let w = base_weights[k] * d[k] * d[k];
@@ -464,7 +615,25 @@ fn solve(
                 if !robust || options.irls_iterations == 0 {
                     break;
                 }
-                let moved = relocate(&prepared, w, &mut blocks, &directions, &base_weights, scale);
+                let noise = direction_noise(&rho);
+                let measured: Vec<MeasuredDistance> = distance_edges
+                    .iter()
+                    .zip(&lengths)
+                    .zip(&sigmas)
+                    .map(|((&ends, &length), sigma)| MeasuredDistance {
+                        ends,
+                        length,
+                        factor: noise / sigma,
+                    })
+                    .collect();
+                let moved = relocate(
+                    &prepared,
+                    w,
+                    &mut blocks,
+                    (&directions, &base_weights),
+                    &measured,
+                    scale,
+                );
                 if moved == 0 {
                     break;
                 }
@@ -491,13 +660,16 @@ fn solve(
             (_, true) => 1.0 / (1.0 + (r / scale).powi(2)),
             (_, false) => 1.0,
         };
-        let cost = |rho: &[f64]| -> f64 {
+        let noise = direction_noise(&rho);
+        let cost = |rho: &[f64], distance_rho: &[f64]| -> f64 {
             rho.iter()
                 .zip(&base_weights)
                 .map(|(r, w)| w * loss(*r))
-                .sum()
+                .sum::<f64>()
+                + distance_rho.iter().map(|r| loss(r.abs())).sum::<f64>()
         };
-        let mut current_cost = cost(&rho);
+        distance_residuals(&positions, noise, &mut distance_rho);
+        let mut current_cost = cost(&rho, &distance_rho);
         for _ in 0..count {
             for k in 0..n_edges {
                 let [a, b] = local[k];
@@ -515,6 +687,23 @@ fn solve(
                 let w = base_weights[k] * weight(r.norm());
                 info[k] = jacobian.tr_mul(&jacobian) * w;
                 rhs[k] = -(jacobian.tr_mul(&r) * w);
+            }
+            // The distances: residual r = (|P_b - P_a| - L) s / sigma, Jacobian u^T s / sigma.
+            distance_residuals(&positions, noise, &mut distance_rho);
+            for (m, &[a, b]) in distance_edges.iter().enumerate() {
+                let k = n_edges + m;
+                let delta = positions[b] - positions[a];
+                let length = delta.norm();
+                if length == 0.0 {
+                    info[k] = Matrix3::zeros();
+                    rhs[k] = Vector3::zeros();
+                    continue;
+                }
+                let jacobian = delta * (noise / (sigmas[m] * length));
+                let r = distance_rho[m];
+                let w = weight(r.abs());
+                info[k] = jacobian * jacobian.transpose() * w;
+                rhs[k] = -(jacobian * (r * w));
             }
             step.iter_mut().for_each(|s| *s = Vector3::zeros());
             let outcome = system.solve(
@@ -539,7 +728,8 @@ fn solve(
                 }
                 system.view_values(&trial, &mut new_positions);
                 chordal_residuals(&new_positions, &mut trial_rho);
-                let trial_cost = cost(&trial_rho);
+                distance_residuals(&new_positions, noise, &mut trial_distance_rho);
+                let trial_cost = cost(&trial_rho, &trial_distance_rho);
                 if trial_cost <= current_cost {
                     accepted = true;
                     current_cost = trial_cost;
@@ -605,6 +795,8 @@ fn solve(
         }
     }
     let factor = match options.scale {
+        // The measured distances fixed it.
+        _ if n_distances > 0 => 1.0,
         ScaleGauge::MeanBaseline => {
             if length_count > 0 {
                 length_count as f64 / length_sum
@@ -657,6 +849,7 @@ fn solve(
         rig_positions,
         lever_arms,
         positions: out_positions,
+        distances_used: n_distances,
         report: AveragingReport {
             kept_views: component.views,
             dropped_views: component.dropped_views,
@@ -675,6 +868,25 @@ fn solve(
     })
 }
 
+/// Smallest direction noise that weighs the measured distances (radians): exact directions
+/// have a zero median residual.
+const MIN_DIRECTION_NOISE: f64 = 1e-9;
+
+/// The direction noise per axis from the direction residuals `rho` (their median over
+/// `sqrt(2 ln 2)`, the median of a two-axis Gaussian's norm in its sigmas), at least
+/// [`MIN_DIRECTION_NOISE`].
+fn direction_noise(rho: &[f64]) -> f64 {
+    (median(rho.to_vec()) / (2.0 * std::f64::consts::LN_2).sqrt()).max(MIN_DIRECTION_NOISE)
+}
+
+/// A measured distance of [`relocate`]: between local views `ends` (each at its time's rig
+/// position), its residual `(|P_b - P_a| - length) factor` in the direction residuals' unit.
+struct MeasuredDistance {
+    ends: [usize; 2],
+    length: f64,
+    factor: f64,
+}
+
 /// Most edges of a time used to propose its positions in [`relocate`] (the first ones in edge
 /// order): 24 edges give 276 candidate pairs.
 const RELOCATION_EDGES: usize = 24;
@@ -689,8 +901,8 @@ fn relocate(
     prepared: &Prepared,
     world_from_rig: &[Matrix3<f64>],
     blocks: &mut [Vector3<f64>],
-    directions: &[Vector3<f64>],
-    base_weights: &[f64],
+    (directions, base_weights): (&[Vector3<f64>], &[f64]),
+    distances: &[MeasuredDistance],
     scale: f64,
 ) -> usize {
     let system = prepared.system(world_from_rig);
@@ -717,6 +929,14 @@ fn relocate(
             by_time[tb].push((k, b, a, 1.0));
         }
     }
+    // The distances of every time: (view at this time, other view, distance).
+    let mut distances_by_time: Vec<Vec<(usize, usize, &MeasuredDistance)>> =
+        vec![Vec::new(); times];
+    for m in distances {
+        let [a, b] = m.ends;
+        distances_by_time[prepared.view_time[a]].push((a, b, m));
+        distances_by_time[prepared.view_time[b]].push((b, a, m));
+    }
     let cauchy = |r: f64| 0.5 * scale * scale * (r / scale).powi(2).ln_1p();
     let mut moved = 0;
     for (t, constraints) in by_time.iter().enumerate() {
@@ -740,7 +960,14 @@ fn relocate(
                     };
                     base_weights[k] * cauchy(r)
                 })
-                .sum()
+                .sum::<f64>()
+                + distances_by_time[t]
+                    .iter()
+                    .map(|&(view, other, m)| {
+                        let length = (rig + offsets[view] - positions[other]).norm();
+                        cauchy((length - m.length) * m.factor)
+                    })
+                    .sum::<f64>()
         };
         let current = blocks[block];
         let mut best = (cost(&current, &positions), current);

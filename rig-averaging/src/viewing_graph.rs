@@ -551,9 +551,20 @@ impl Prepared {
     /// The linear problem over this graph with the times' rotations `world_from_rig` (indexed
     /// by time; only kept times are read).
     pub(crate) fn system<'a>(&'a self, world_from_rig: &'a [Matrix3<f64>]) -> BlockSystem<'a> {
+        self.system_with_edges(world_from_rig, &self.local_edges)
+    }
+
+    /// The same over other edges between the local views (for example the local edges
+    /// followed by distance constraints).
+    pub(crate) fn system_with_edges<'a>(
+        &'a self,
+        world_from_rig: &'a [Matrix3<f64>],
+        edges: &'a [[usize; 2]],
+    ) -> BlockSystem<'a> {
         BlockSystem {
             prepared: self,
             world_from_rig,
+            edges,
         }
     }
 }
@@ -562,6 +573,8 @@ impl Prepared {
 pub(crate) struct BlockSystem<'a> {
     prepared: &'a Prepared,
     world_from_rig: &'a [Matrix3<f64>],
+    /// The edges `[a, b]` between local views, index for index with the solves' `info`.
+    edges: &'a [[usize; 2]],
 }
 
 /// Scratch vectors of [`BlockSystem::solve`].
@@ -623,7 +636,7 @@ impl BlockSystem<'_> {
         self.view_values(z, &mut views);
         s.grads.clear();
         s.grads.resize(views.len(), Vector3::zeros());
-        for (&[a, b], l) in self.prepared.local_edges.iter().zip(info) {
+        for (&[a, b], l) in self.edges.iter().zip(info) {
             let r = l * (views[b] - views[a]);
             s.grads[b] += r;
             s.grads[a] -= r;
@@ -638,7 +651,7 @@ impl BlockSystem<'_> {
         let p = self.prepared;
         out.clear();
         out.resize(p.blocks, Matrix3::zeros());
-        for (&[a, b], l) in p.local_edges.iter().zip(info) {
+        for (&[a, b], l) in self.edges.iter().zip(info) {
             // The edge's Jacobian blocks, duplicates merged (at most four).
             let mut jac: [(usize, Matrix3<f64>); 4] = [(usize::MAX, Matrix3::zeros()); 4];
             let mut n = 0;
@@ -702,7 +715,7 @@ impl BlockSystem<'_> {
         // b = sum_e D_e^T g_e.
         let views = self.prepared.view_time.len();
         let mut grads = vec![Vector3::zeros(); views];
-        for (&[a, c], g) in self.prepared.local_edges.iter().zip(rhs) {
+        for (&[a, c], g) in self.edges.iter().zip(rhs) {
             grads[c] += g;
             grads[a] -= g;
         }

@@ -13,7 +13,7 @@ use ibc_vocab_tree::Descriptor;
 use nalgebra::{Isometry3, Matrix6};
 
 use super::error::SelfCalibrationError;
-use super::selfcalib::{Round, SelfCalibrationOptions, TrackStats, reconstruct};
+use super::selfcalib::{OdometryDistances, Round, SelfCalibrationOptions, TrackStats, reconstruct};
 use crate::NonExhaustive;
 use crate::data::{Map, MapImage, PointId, RigLog};
 
@@ -45,6 +45,7 @@ impl Default for MapOptions {
     fn default() -> Self {
         let mut reconstruction = SelfCalibrationOptions::default();
         reconstruction.tracks.relative_pose.progressive = true;
+        reconstruction.odometry_distances = Some(OdometryDistances::default());
         Self {
             reconstruction,
             refine_extrinsics: false,

@@ -30,7 +30,7 @@ mod tracks;
 pub use error::SelfCalibrationError;
 pub use map::{BuiltMap, MapOptions, build_map};
 pub use selfcalib::{
-    Round, ScaleEstimate, ScaleSource, SelfCalibration, SelfCalibrationOptions, TrackStats,
-    extrinsic_errors, self_calibrate,
+    OdometryDistances, Round, ScaleEstimate, ScaleSource, SelfCalibration, SelfCalibrationOptions,
+    TrackStats, extrinsic_errors, self_calibrate,
 };
 pub use tracks::{ImageId, Track, TrackOptions, Tracks, VerifiedPair, build_tracks};

@@ -31,9 +31,9 @@ use ibc_hand_eye::{
 };
 use ibc_pnp::{TriangulationOptions, triangulate};
 use ibc_rig_averaging::{
-    DirectionEdge, RigLayout, RigView, RotationAveragingOptions, RotationEdge,
+    DirectionEdge, RigLayout, RigView, RotationAveragingOptions, RotationEdge, TimeDistance,
     TranslationAveragingOptions, ViewingGraphError, rig_rotation_averaging,
-    rig_translation_averaging,
+    rig_translation_averaging_with_distances,
 };
 use ibc_vocab_tree::Descriptor;
 use nalgebra::{
@@ -83,7 +83,8 @@ pub struct SelfCalibrationOptions {
     pub loss: RobustLoss,
     /// Solver of the bundle adjustment. Default the rig bundle adjustment's
     /// ([`RigBundleAdjustmentOptions::default`]: Ceres's, with the loss's curvature kept for
-    /// the inliers).
+    /// the inliers) on two threads, as `ibc calibrate`'s refinement (a fixed split: the same
+    /// result on every machine).
     pub solver: SolverOptions,
     /// An observation reprojecting farther than this from its keypoint after triangulation is
     /// left out of the next adjustment, pixels. Default 3 (six standard deviations of 0.5 px
@@ -114,6 +115,12 @@ pub struct SelfCalibrationOptions {
     /// the solver's 1e-6 only costs iterations. Unused when the extrinsics are estimated,
     /// whose rounds are compared with their standard deviations.
     pub intermediate_function_tolerance: f64,
+    /// Whether the translation averaging also uses the distances the odometry travelled
+    /// between consecutive frames of (nearly) the same heading, and how much it trusts them
+    /// (default `None`: directions only; [`super::MapOptions::default`] uses them). Directions
+    /// leave the spacing of frames along a straight drive undetermined; these distances fix it
+    /// and the scale. Unused when the log has no odometry.
+    pub odometry_distances: Option<OdometryDistances>,
     /// Keeps the struct open to new fields: build it with `..Default::default()`.
     #[doc(hidden)]
     pub non_exhaustive: NonExhaustive,
@@ -127,7 +134,11 @@ impl Default for SelfCalibrationOptions {
             translation_averaging: TranslationAveragingOptions::default(),
             triangulation: TriangulationOptions::default(),
             loss: RobustLoss::Cauchy { scale: 1.0 },
-            solver: RigBundleAdjustmentOptions::default().solver,
+            solver: SolverOptions {
+                // As `ibc calibrate`'s refinement: a fixed split, the same result everywhere.
+                num_threads: crate::calib::refinement::REFINEMENT_THREADS,
+                ..RigBundleAdjustmentOptions::default().solver
+            },
             outlier_threshold_px: 3.0,
             max_rounds: 5,
             change_tolerance: 0.5,
@@ -135,9 +146,61 @@ impl Default for SelfCalibrationOptions {
             translation_tolerance: 1e-5,
             scale: ScaleSource::Auto,
             intermediate_function_tolerance: 1e-4,
+            odometry_distances: None,
             non_exhaustive: NonExhaustive(()),
         }
     }
+}
+
+/// How [`SelfCalibrationOptions::odometry_distances`] turns the odometry into distances
+/// between rig positions.
+///
+/// Between consecutive frames whose odometry turned by `theta <= max_turn_rad`, the rig's
+/// origin moved the odometry's distance `L` up to the lever arm from the odometry's origin
+/// (at most `theta * lever_bound_m`), so the distance is given the standard deviation
+/// `relative_sigma * L + theta * lever_bound_m`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct OdometryDistances {
+    /// The odometry's distance error as a fraction of the distance (default 0.01).
+    pub relative_sigma: f64,
+    /// The largest turn between two frames whose distance is used, radians (default 0.5
+    /// degree).
+    pub max_turn_rad: f64,
+    /// A bound on the distance from the odometry's origin to the rig's (the reference
+    /// camera), metres (default 5).
+    pub lever_bound_m: f64,
+}
+
+impl Default for OdometryDistances {
+    fn default() -> Self {
+        Self {
+            relative_sigma: 0.01,
+            max_turn_rad: 0.5_f64.to_radians(),
+            lever_bound_m: 5.0,
+        }
+    }
+}
+
+/// The distances of `options` between consecutive frames of `log` (see
+/// [`OdometryDistances`]); empty without odometry.
+fn odometry_distances<D: Descriptor>(
+    log: &RigLog<D>,
+    options: &OdometryDistances,
+) -> Vec<TimeDistance> {
+    let mut out = Vec::new();
+    for (t, pair) in log.frames.windows(2).enumerate() {
+        let (Some(a), Some(b)) = (pair[0].world_from_odometry, pair[1].world_from_odometry) else {
+            continue;
+        };
+        let step = a.inverse() * b;
+        let turn = step.rotation.angle();
+        let length = step.translation.vector.norm();
+        if turn <= options.max_turn_rad && length > 0.0 {
+            let sigma = options.relative_sigma * length + turn * options.lever_bound_m;
+            out.push(TimeDistance::new(t, t + 1, length, sigma));
+        }
+    }
+    out
 }
 
 /// How the scale of a [`SelfCalibration`] was fixed.
@@ -424,10 +487,15 @@ pub(crate) fn reconstruct<D: Descriptor>(
                 .then(|| DirectionEdge::new(i, j, -(camera_from_world_j.inverse() * t) / norm))
         })
         .collect();
-    let translations = rig_translation_averaging(
+    let distances = match &options.odometry_distances {
+        Some(o) if log.odometry != OdometryKind::None => odometry_distances(log, o),
+        _ => Vec::new(),
+    };
+    let translations = rig_translation_averaging_with_distances(
         &layout,
         &rotations.world_from_rig,
         &direction_edges,
+        &distances,
         &options.translation_averaging,
     )
     .map_err(undetermined)?;
@@ -464,7 +532,12 @@ pub(crate) fn reconstruct<D: Descriptor>(
                 reason: "the rig's cameras are all at one place: the scale is not known".into(),
             });
         }
-        let s = num / den;
+        // Odometry distances made the averaging metric already.
+        let s = if translations.distances_used > 0 {
+            1.0
+        } else {
+            num / den
+        };
         for pose in world_from_rig.iter_mut().flatten() {
             pose.translation.vector *= s;
         }
@@ -781,6 +854,26 @@ fn check_options(
     }
     if options.max_rounds == 0 {
         return invalid("max_rounds", "must be at least 1".into());
+    }
+    if let Some(o) = &options.odometry_distances {
+        if !(o.relative_sigma.is_finite() && o.relative_sigma > 0.0) {
+            return invalid(
+                "odometry_distances.relative_sigma",
+                format!("must be finite and positive, got {}", o.relative_sigma),
+            );
+        }
+        let checks = [
+            ("odometry_distances.max_turn_rad", o.max_turn_rad),
+            ("odometry_distances.lever_bound_m", o.lever_bound_m),
+        ];
+        for (option, value) in checks {
+            if !(value.is_finite() && value >= 0.0) {
+                return invalid(
+                    option,
+                    format!("must be finite and not negative, got {value}"),
+                );
+            }
+        }
     }
     if let ScaleSource::Baseline { a, b, distance_m } = options.scale
         && (a >= cameras || b >= cameras || a == b || !(distance_m > 0.0 && distance_m.is_finite()))
