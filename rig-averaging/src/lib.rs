@@ -9,6 +9,7 @@ mod rig_init;
 mod robust;
 mod rotation_averaging;
 mod scoring;
+mod sparse_cholesky;
 mod translation_averaging;
 mod viewing_graph;
 

@@ -496,6 +496,8 @@ fn solve(
     };
     let mut robust_weights = vec![1.0; n_edges];
     let mut scratch = CgScratch::default();
+    // With distances the system is well determined: solve it directly (viewing_graph.rs).
+    scratch.direct_solve = n_distances > 0;
     let (mut linear_iterations, mut linear_converged) = (0, true);
     let (mut iterations, mut converged) = (0, false);
     let mut scale = options.robust_scale.unwrap_or(f64::INFINITY);
