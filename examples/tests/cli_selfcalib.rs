@@ -127,6 +127,12 @@ fn selfcalib_and_map_on_a_simulated_garage() {
         "{summary}"
     );
     assert_eq!(summary["extrinsics"], "refined", "{summary}");
+    // The log has wheel odometry: the averaging used its distances on the straights.
+    assert!(
+        summary["odometry_distances"].as_u64().unwrap() > 0,
+        "{summary}"
+    );
+    assert!(summary["covariance_error"].is_null(), "{summary}");
     // The same map as COLMAP data reads back with every point.
     let colmap = dir.path().join("built-colmap");
     let read = ibc_pipeline::colmap::read_colmap_map::<[u64; 4]>(

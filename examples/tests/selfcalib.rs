@@ -336,6 +336,8 @@ fn a_built_map_calibrates_a_moved_rig_as_well_as_the_true_map() {
         p90 * 1e3
     );
     assert!(built.map.points.len() > 10_000);
+    // The survey log has wheel odometry: its distances shaped the averaged trajectory.
+    assert!(built.odometry_distances > 0);
     assert!(median <= 0.05 && p90 <= 0.5, "{median} {p90}");
 
     let moved = world("garage-moved-cameras", 0.2, None);

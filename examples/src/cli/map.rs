@@ -136,6 +136,7 @@ fn run_with<D: MapDescriptor>(args: &MapArgs, bars: &Bars) -> Result<Outcome, Cl
         "extrinsics": if args.refine_extrinsics { "refined" } else { "held" },
         "cameras": moved,
         "covariance_error": built.covariance_error,
+        "odometry_distances": built.odometry_distances,
     });
     if args.json {
         print(&(serde_json::to_string_pretty(&summary).unwrap_or_default() + "\n"))?;

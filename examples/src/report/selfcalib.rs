@@ -430,6 +430,7 @@ mod tests {
             points: vec![Vector3::new(0.0, 0.0, 5.0).into()],
             extrinsic_covariance: vec![None, None],
             covariance_error,
+            odometry_distances: 0,
             scale: ScaleEstimate::Baseline,
             rounds: Vec::new(),
             converged: true,

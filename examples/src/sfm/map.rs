@@ -84,6 +84,11 @@ pub struct BuiltMap<D> {
     /// With refined extrinsics, why they have no covariance
     /// ([`super::SelfCalibration::covariance_error`]); else `None`.
     pub covariance_error: Option<String>,
+    /// How many of the odometry's distances between consecutive frames the translation
+    /// averaging used (0 without odometry or with
+    /// [`SelfCalibrationOptions::odometry_distances`] off): with any, they fixed the
+    /// averaged trajectory's spacing and scale.
+    pub odometry_distances: usize,
 }
 
 /// Builds a map from the survey `log` of the calibrated `rig` (its cameras in the log's order;
@@ -154,5 +159,6 @@ pub fn build_map<D: Descriptor>(
         rig_from_camera: result.rig_from_camera,
         extrinsic_covariance: result.extrinsic_covariance,
         covariance_error: result.covariance_error,
+        odometry_distances: result.odometry_distances,
     })
 }

@@ -295,6 +295,9 @@ pub struct SelfCalibration {
     /// extrinsics were held. Without it the rounds' convergence falls back to the fixed
     /// tolerances and the result has no standard deviations.
     pub covariance_error: Option<String>,
+    /// How many odometry distances the translation averaging used
+    /// ([`SelfCalibrationOptions::odometry_distances`]; 0 without).
+    pub odometry_distances: usize,
     /// How the scale was fixed.
     pub scale: ScaleEstimate,
     /// The rounds of triangulation and adjustment.
@@ -808,6 +811,7 @@ pub(crate) fn reconstruct<D: Descriptor>(
                 .collect(),
             extrinsic_covariance,
             covariance_error,
+            odometry_distances: translations.distances_used,
             scale,
             rounds,
             converged,
