@@ -302,6 +302,18 @@ fn baseline(w: &World, c: usize) -> f64 {
         .norm()
 }
 
+/// The scale held by camera 2's true baseline, with the covariance.
+fn baseline_gauge_with_covariance(w: &World) -> RigBundleAdjustmentOptions {
+    RigBundleAdjustmentOptions {
+        scale: ScaleGauge::Baseline {
+            camera: 2,
+            distance_m: baseline(w, 2),
+        },
+        covariance: true,
+        ..Default::default()
+    }
+}
+
 fn solve(w: &World, options: &RigBundleAdjustmentOptions) -> RigBundleAdjustmentResult {
     let r = w.start.solve(options).unwrap();
     assert!(
@@ -318,14 +330,7 @@ fn solve(w: &World, options: &RigBundleAdjustmentOptions) -> RigBundleAdjustment
 #[test]
 fn points_free_recovers_the_extrinsics() {
     let w = world(16, 40.0, 40, 0.6);
-    let options = RigBundleAdjustmentOptions {
-        scale: ScaleGauge::Baseline {
-            camera: 2,
-            distance_m: baseline(&w, 2),
-        },
-        covariance: true,
-        ..Default::default()
-    };
+    let options = baseline_gauge_with_covariance(&w);
     let r = solve(&w, &options);
     let (deg, mm) = worst_error(&w.truth_rig_from_camera, &r.rig_from_camera);
     eprintln!(
@@ -641,14 +646,7 @@ fn bad_input_is_a_typed_error() {
 #[test]
 fn an_undetermined_point_loses_the_covariance_not_the_adjustment() {
     let w = world(18, 40.0, 24, 0.3);
-    let options = RigBundleAdjustmentOptions {
-        scale: ScaleGauge::Baseline {
-            camera: 2,
-            distance_m: baseline(&w, 2),
-        },
-        covariance: true,
-        ..Default::default()
-    };
+    let options = baseline_gauge_with_covariance(&w);
     let full = solve(&w, &options);
     assert!(full.covariance_error.is_none());
     assert!(

@@ -319,13 +319,7 @@ pub fn rig_translation_averaging(
     edges: &[DirectionEdge],
     options: &TranslationAveragingOptions,
 ) -> Result<RigTranslationAveraging, ViewingGraphError> {
-    if options.reference_camera >= layout.cameras() {
-        return Err(ViewingGraphError::InvalidOption {
-            option: "reference_camera",
-            reason: "must be a camera of the layout",
-        });
-    }
-    solve(layout, world_from_rig, edges, &[], options, 0)
+    rig_translation_averaging_with_distances(layout, world_from_rig, edges, &[], options)
 }
 
 /// As [`rig_translation_averaging`], with measured `distances` between the rig positions of
