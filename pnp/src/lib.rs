@@ -55,7 +55,7 @@ pub use refine::{
 pub use relative_pose::{
     GricScores, RELATIVE_POSE_MAX_ITERATIONS, RELATIVE_POSE_MIN_PARALLAX, RELATIVE_POSE_MIN_POINTS,
     RefinedRelativePose, RelativePose, RelativePoseOptions, TwoViewModel, refine_relative_pose,
-    relative_pose,
+    relative_pose, relative_pose_inliers,
 };
 pub use relative_pose_error::{RelativePoseError, RelativeResult};
 pub use threshold::angle_from_pixels;

@@ -244,6 +244,61 @@ pub struct RelativePose {
     pub gric: Option<GricScores>,
 }
 
+/// The correspondences consistent with a known relative pose `b_from_a` (`X_b = R X_a + t`,
+/// for example between two cameras of a calibrated rig at one time): indices (increasing) of
+/// those within `threshold` (radians) of its epipolar constraint, by the angular error of the
+/// module documentation, and in front of both cameras (or too far for the sign of their depths
+/// to tell, as in [`relative_pose`]). With `t = 0` (the same centre) the epipolar constraint
+/// says nothing: a correspondence is consistent when the rotation model's distance (the angle
+/// between `R a` and `b` over `sqrt 2`, the module documentation's) is within `threshold`. The norm of `t` does not matter.
+///
+/// # Errors
+/// [`RelativePoseError::LengthMismatch`], [`RelativePoseError::NonFiniteBearing`] and
+/// [`RelativePoseError::NonUnitBearing`] for the bearings (any number of them, zero included);
+/// [`RelativePoseError::InvalidOption`] for a `threshold` that is not finite and positive or a
+/// pose that is not finite.
+pub fn relative_pose_inliers(
+    bearings_a: &[Vector3<f64>],
+    bearings_b: &[Vector3<f64>],
+    b_from_a: &Isometry3<f64>,
+    threshold: f64,
+) -> RelativeResult<Vec<usize>> {
+    check_bearing_pairs("relative pose inliers", 0, bearings_a, bearings_b)?;
+    if !(threshold.is_finite() && threshold > 0.0) {
+        return Err(RelativePoseError::InvalidOption {
+            name: "threshold",
+            reason: format!("must be finite and positive, got {threshold}"),
+        });
+    }
+    let rotation = b_from_a.rotation.to_rotation_matrix().into_inner();
+    let t = b_from_a.translation.vector;
+    if !(rotation.iter().all(|v| v.is_finite()) && t.iter().all(|v| v.is_finite())) {
+        return Err(RelativePoseError::InvalidOption {
+            name: "b_from_a",
+            reason: "the pose is not finite".into(),
+        });
+    }
+    let thr2 = threshold * threshold;
+    let mut inliers = Vec::new();
+    let norm = t.norm();
+    if norm > 0.0 {
+        let scorer = Scorer {
+            a: bearings_a,
+            b: bearings_b,
+            thr2,
+        };
+        scorer.inliers(&Model::new(rotation, t / norm), &mut inliers);
+    } else {
+        // The rotation model's squared first-order distance `e^2 / 2` (module documentation).
+        for (i, (fa, fb)) in bearings_a.iter().zip(bearings_b).enumerate() {
+            if rotation_error(&rotation, fa, fb) <= thr2 {
+                inliers.push(i);
+            }
+        }
+    }
+    Ok(inliers)
+}
+
 /// The outcome of [`refine_relative_pose`].
 #[derive(Debug, Clone, PartialEq)]
 #[non_exhaustive]

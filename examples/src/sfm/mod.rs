@@ -33,4 +33,6 @@ pub use selfcalib::{
     OdometryDistances, Round, ScaleEstimate, ScaleSource, SelfCalibration, SelfCalibrationOptions,
     TrackStats, extrinsic_errors, self_calibrate,
 };
-pub use tracks::{ImageId, Track, TrackOptions, Tracks, VerifiedPair, build_tracks};
+pub use tracks::{
+    ImageId, Track, TrackOptions, Tracks, VerifiedPair, build_tracks, build_tracks_with_rig,
+};

@@ -43,7 +43,7 @@ use nalgebra::{
 use rayon::prelude::*;
 
 use super::error::SelfCalibrationError;
-use super::tracks::{TrackOptions, Tracks, build_tracks};
+use super::tracks::{TrackOptions, Tracks, build_tracks_with_rig};
 use crate::NonExhaustive;
 use crate::calib::accuracy::relative_to_first;
 use crate::data::{OdometryKind, RigLog};
@@ -398,7 +398,8 @@ pub(crate) fn reconstruct<D: Descriptor>(
             log: cameras.len(),
         });
     }
-    let tracks = build_tracks(log, cameras, &options.tracks)?;
+    // Held extrinsics verify the pairs of one frame by themselves.
+    let tracks = build_tracks_with_rig(log, cameras, known.filter(|_| held), &options.tracks)?;
     if tracks.pairs.is_empty() {
         return Err(SelfCalibrationError::NoVerifiedPairs {
             candidates: tracks.candidate_pairs,

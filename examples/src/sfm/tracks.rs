@@ -15,14 +15,20 @@
 //! 4. geometric verification by [`ibc_pnp::relative_pose`] on the bearings (LO-RANSAC, the
 //!    five-point essential matrix, a homography or a pure rotation chosen by GRIC), which keeps
 //!    the inlier matches and the relative pose: its rotation always, its translation direction
-//!    when the pair has parallax (an essential or planar model);
+//!    when the pair has parallax (an essential or planar model); with the rig's extrinsics
+//!    known ([`build_tracks_with_rig`], a map being built), two cameras of one frame need no
+//!    search: their relative pose is the rig's, and [`ibc_pnp::relative_pose_inliers`] keeps
+//!    the matches consistent with it;
 //! 5. tracks: the connected components of the verified matches; a component with two keypoints
 //!    in one image is a wrong match somewhere and is dropped whole.
 
 use std::sync::Arc;
 
 use ibc_camera_models::{Camera, CameraModel};
-use ibc_pnp::{RansacOptions, RelativePoseError, RelativePoseOptions, TwoViewModel, relative_pose};
+use ibc_pnp::{
+    RansacOptions, RelativePoseError, RelativePoseOptions, TwoViewModel, relative_pose,
+    relative_pose_inliers,
+};
 use ibc_vocab_tree::{
     Database, Descriptor, FeatureVector, MatchOptions, QueryOptions, TrainingOptions, Vocabulary,
     match_by_nodes,
@@ -160,6 +166,30 @@ pub fn build_tracks<D: Descriptor>(
     cameras: &[Camera],
     options: &TrackOptions,
 ) -> Result<Tracks, SelfCalibrationError> {
+    build_tracks_with_rig(log, cameras, None, options)
+}
+
+/// As [`build_tracks`], with the rig's extrinsics `rig_from_camera` (one per camera, any
+/// common rig frame) known when given: a pair of two cameras of one frame is then verified
+/// against their known relative pose instead of by a search (see the module documentation).
+///
+/// # Errors
+/// As [`build_tracks`], and [`SelfCalibrationError::CameraCount`] when `rig_from_camera` does
+/// not have one pose per camera.
+pub fn build_tracks_with_rig<D: Descriptor>(
+    log: &RigLog<D>,
+    cameras: &[Camera],
+    rig_from_camera: Option<&[Isometry3<f64>]>,
+    options: &TrackOptions,
+) -> Result<Tracks, SelfCalibrationError> {
+    if let Some(known) = rig_from_camera
+        && known.len() != cameras.len()
+    {
+        return Err(SelfCalibrationError::CameraCount {
+            cameras: known.len(),
+            log: cameras.len(),
+        });
+    }
     if cameras.len() != log.camera_names.len() {
         return Err(SelfCalibrationError::CameraCount {
             cameras: cameras.len(),
@@ -299,9 +329,13 @@ pub fn build_tracks<D: Descriptor>(
     let verified: Vec<Option<VerifiedPair>> = candidates
         .par_iter()
         .map(|&(a, b)| {
+            let (ia, ib) = (images[a], images[b]);
+            let known = rig_from_camera
+                .filter(|_| ia.frame == ib.frame)
+                .map(|rig| rig[ib.camera].inverse() * rig[ia.camera]);
             verify_pair(
-                a,
-                b,
+                (a, b),
+                known,
                 (&features(&images[a]).descriptors, &transformed[a].1),
                 (&features(&images[b]).descriptors, &transformed[b].1),
                 (&bearings[a], &bearings[b]),
@@ -327,8 +361,8 @@ pub fn build_tracks<D: Descriptor>(
 
 /// Matches and verifies one candidate pair; `None` when it does not hold.
 fn verify_pair<D: Descriptor>(
-    a: usize,
-    b: usize,
+    (a, b): (usize, usize),
+    known: Option<Isometry3<f64>>,
     (desc_a, fv_a): (&[D], &FeatureVector),
     (desc_b, fv_b): (&[D], &FeatureVector),
     (bear_a, bear_b): (&Bearings, &Bearings),
@@ -358,6 +392,32 @@ fn verify_pair<D: Descriptor>(
     }
     if keypoints.len() < options.min_inliers {
         return None;
+    }
+    if let Some(b_from_a) = known {
+        // Two cameras of one frame of a known rig: their relative pose is the rig's.
+        let inliers =
+            relative_pose_inliers(&xa, &xb, &b_from_a, options.relative_pose.ransac.threshold)
+                .ok()?;
+        if inliers.len() < options.min_inliers {
+            return None;
+        }
+        let mut matches: Vec<(u32, u32)> = inliers.iter().map(|&k| keypoints[k]).collect();
+        matches.sort_unstable();
+        let length = b_from_a.translation.vector.norm();
+        return Some(VerifiedPair {
+            a,
+            b,
+            b_from_a: Isometry3::from_parts(
+                Translation3::from(if length > 0.0 {
+                    b_from_a.translation.vector / length
+                } else {
+                    Vector3::zeros()
+                }),
+                b_from_a.rotation,
+            ),
+            has_direction: length > 0.0,
+            matches,
+        });
     }
     let mut pose_options = options.relative_pose.clone();
     pose_options.ransac.seed = mix(mix(options.seed ^ mix(a as u64)) ^ b as u64);
