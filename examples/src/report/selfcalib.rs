@@ -183,8 +183,8 @@ impl SelfCalibrationReport {
                 kind: "no_covariance",
                 message: format!(
                     "the extrinsics have no standard deviations ({reason}): whether the data \
-                     determines each of them is not known, and the rounds stopped on the \
-                     fixed tolerances"
+                     determines each of them is not known, and the rounds could only stop on \
+                     the fixed tolerances"
                 ),
             });
         }
