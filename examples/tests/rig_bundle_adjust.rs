@@ -9,16 +9,18 @@
 //! a random axis and moved 10 cm in a random direction (the front camera, the reference,
 //! exact); every point moved 5 cm in a random direction; the rig poses the truth turned
 //! 0.1 degree about a random axis and moved 1 cm. The scale is fixed by the true front-rear
-//! baseline.
+//! baseline. The last test does the same on TrimBot2020's pentagon (issue 17's bar there).
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
 use std::time::Instant;
 
 use ibc_pipeline::ibc_bundle_adjust::{
-    RigBundleAdjustment, RigBundleAdjustmentOptions, RigBundleAdjustmentResult, ScaleGauge,
+    RigBundleAdjustment, RigBundleAdjustmentOptions, RigBundleAdjustmentResult, RobustLoss,
+    ScaleGauge,
 };
 use ibc_pipeline::ibc_camera_models::CameraModel;
 use ibc_pipeline::nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
+use ibc_pipeline::sfm::extrinsic_errors;
 use ibc_pipeline::sim::{Scenario, SimulatedWorld};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -58,6 +60,7 @@ struct Setup {
     truth_rig_from_camera: Vec<Isometry3<f64>>,
     truth_params: Vec<Vec<f64>>,
     baseline: f64,
+    pixel_sigma: f64,
 }
 
 fn setup() -> Setup {
@@ -65,9 +68,14 @@ fn setup() -> Setup {
 }
 
 fn setup_scaled(scale: f64) -> Setup {
-    let scenario = Scenario::resolve("garage")
+    setup_seeded("garage", scale, 1)
+}
+
+/// Scenario `name` at `scale`, simulated with `seed`; the start drawn as above.
+fn setup_seeded(name: &str, scale: f64, seed: u64) -> Setup {
+    let scenario = Scenario::resolve(name)
         .unwrap()
-        .with_seed(1)
+        .with_seed(seed)
         .with_scale(scale);
     let world = SimulatedWorld::simulate(&scenario).unwrap();
     let mut rng = ChaCha8Rng::seed_from_u64(16);
@@ -96,6 +104,7 @@ fn setup_scaled(scale: f64) -> Setup {
         .map(|p| perturb(p, 0.1, 0.01, &mut rng))
         .collect();
     Setup {
+        pixel_sigma: scenario.noise.pixel_sigma_px,
         baseline: (truth[2].translation.vector - truth[0].translation.vector).norm(),
         truth_params: cameras.iter().map(|c| c.params().to_vec()).collect(),
         truth_rig_from_camera: truth,
@@ -260,4 +269,91 @@ fn full_garage_meets_colmap_points_free_and_intrinsics_free() {
         "{ideg} deg / {imm} mm"
     );
     assert!(focal <= FOCAL_PX, "{focal} px");
+}
+
+/// Issue 17's pentagon bar (0.003 deg worst camera, after COLMAP's 0.0030 deg / 0.51 mm)
+/// against what the data allows. TrimBot2020's pentagon (ten 82-degree pinholes) in the
+/// garden, 100 frames, with perfect tracks (every log feature on a landmark: COLMAP's input),
+/// solved by plain least squares, the maximum-likelihood estimate under the simulator's
+/// Gaussian keypoint noise, on eight worlds of the scenario (seeds 1-8).
+///
+/// Asserted: the estimate is efficient, its errors those its covariance predicts: over the 72
+/// (world, camera) pairs the rotation errors normalized by the reported covariance,
+/// `φᵀ Σ_φφ⁻¹ φ`, average 3 (a χ² with three degrees of freedom) within sampling error, and
+/// so do the translations (camera 2's, on the baseline's sphere, left out); the translations
+/// meet the issue's 0.5 mm. Measured 2026-12-03: normalized errors 2.99 (rotation) and 2.63
+/// (translation); worst camera 0.0024-0.0070 deg, median 0.0036 deg, six of the eight worlds
+/// above 0.003 deg; translations 0.28-0.48 mm after aligning the scale. So the 0.003 deg bar
+/// lies below what the best estimator reaches on most worlds of this scenario, even with
+/// perfect tracks (COLMAP's 0.0030 deg is one world's draw). On seed 1, the world of the
+/// self-calibration test (`selfcalib.rs`, `pentagon_rig_in_the_garden`): 0.0037 deg / 0.38 mm
+/// here, against 0.0079 deg / 0.57 mm from the self-calibration's own tracks.
+#[test]
+fn pentagon_with_perfect_tracks_is_efficient_and_the_rotation_bar_below_its_spread() {
+    let mut worst = Vec::new();
+    let (mut rotation_chi2, mut translation_chi2) = (Vec::new(), Vec::new());
+    for seed in 1..=8u64 {
+        let s = setup_seeded("garden-pentagon", 1.0 / 3.0, seed);
+        let r = s
+            .problem
+            .solve(&RigBundleAdjustmentOptions {
+                covariance: true,
+                loss: RobustLoss::Trivial,
+                ..options(&s)
+            })
+            .unwrap();
+        assert!(
+            r.summary.termination.is_converged(),
+            "{}",
+            r.summary.report()
+        );
+        let sigma2 = s.pixel_sigma * s.pixel_sigma;
+        // After aligning the scale, as COLMAP's figure and the self-calibration's bars.
+        let errors = extrinsic_errors(&r.rig_from_camera, &s.truth_rig_from_camera, true);
+        let deg = errors.iter().map(|e| e.0.to_degrees()).fold(0.0, f64::max);
+        let mm = errors.iter().map(|e| e.1 * 1e3).fold(0.0, f64::max);
+        eprintln!(
+            "pentagon, perfect tracks, seed {seed}: {} observations of {} points; worst {deg:.5} deg / {mm:.3} mm",
+            s.problem.observations.len(),
+            s.problem.points.len(),
+        );
+        assert!(mm <= 0.5, "seed {seed}: {mm} mm");
+        worst.push(deg);
+        for c in 1..s.truth_rig_from_camera.len() {
+            let truth = &s.truth_rig_from_camera[c];
+            // The error in the solver's tangent coordinates: estimate = truth · Exp([ρ, φ]).
+            let d = truth.inverse() * r.rig_from_camera[c];
+            let phi = d.rotation.scaled_axis();
+            let rho = d.translation.vector;
+            let cov = r.extrinsic_covariance[c].unwrap() * sigma2;
+            let chi2 = |e: Vector3<f64>, k: usize| {
+                let block = cov.fixed_view::<3, 3>(k, k).into_owned();
+                e.dot(&(block.try_inverse().unwrap() * e))
+            };
+            rotation_chi2.push(chi2(phi, 3));
+            if c != 2 {
+                translation_chi2.push(chi2(rho, 0));
+            }
+        }
+    }
+    let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
+    worst.sort_by(f64::total_cmp);
+    let median = 0.5 * (worst[3] + worst[4]);
+    let above = worst.iter().filter(|&&d| d > 0.003).count();
+    eprintln!(
+        "worst camera over the worlds {worst:.5?}, median {median:.5} deg, {above} of 8 above 0.003 deg; \
+         normalized errors: rotation {:.2}, translation {:.2} (3 if efficient)",
+        mean(&rotation_chi2),
+        mean(&translation_chi2)
+    );
+    // Mean of n χ²(3) draws: 3 ± √(6/n) (0.29 for the 72 rotations, 0.31 for the 64
+    // translations); ± 1.2 is about four of those, allowing for the cameras of one world
+    // being correlated.
+    for (what, v) in [
+        ("rotation", &rotation_chi2),
+        ("translation", &translation_chi2),
+    ] {
+        assert!((mean(v) - 3.0).abs() <= 1.2, "{what}: {}", mean(v));
+    }
+    assert!(median > 0.003, "median worst camera {median} deg");
 }
