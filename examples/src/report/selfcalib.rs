@@ -22,7 +22,8 @@
 //!   "tracks": {"images": 400, "candidate_pairs": 4349, "verified_pairs": 4141, ...},
 //!   "rounds": [{"points": ..., "observations": ..., "outliers": ...,
 //!               "wide_observations": ..., "rms_px": ..., "iterations": ...,
-//!               "rotation_change_deg": ..., "translation_change": ...}],
+//!               "rotation_change_deg": ..., "translation_change": ...,
+//!               "completed_observations": ..., "merged_tracks": ...}],
 //!   "converged": true
 //! }
 //! ```
@@ -91,6 +92,10 @@ pub struct RoundJson {
     pub rotation_change_deg: f64,
     /// Largest extrinsic translation change, in the reconstruction's unit before scaling.
     pub translation_change: f64,
+    /// Observations the track completion added after the round.
+    pub completed_observations: usize,
+    /// Tracks the completion merged into another after the round.
+    pub merged_tracks: usize,
 }
 
 /// A warning of the report.
@@ -261,6 +266,8 @@ impl SelfCalibrationReport {
                     iterations: r.iterations,
                     rotation_change_deg: r.rotation_change.to_degrees(),
                     translation_change: r.translation_change,
+                    completed_observations: r.completed_observations,
+                    merged_tracks: r.merged_tracks,
                 })
                 .collect(),
             converged: result.converged,

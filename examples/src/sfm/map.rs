@@ -50,6 +50,9 @@ impl Default for MapOptions {
         let mut reconstruction = SelfCalibrationOptions::default();
         reconstruction.tracks.relative_pose.progressive = true;
         reconstruction.odometry_distances = Some(OdometryDistances::default());
+        // Not for the survey: on the default drive it took `ibc map` from 27 s to 47 s wall
+        // (78k points of 22 observations instead of 177k of 5.7; BENCHMARKS.md).
+        reconstruction.track_completion = None;
         Self {
             reconstruction,
             refine_extrinsics: false,

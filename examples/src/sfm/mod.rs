@@ -22,11 +22,13 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
+mod completion;
 mod error;
 mod map;
 mod selfcalib;
 mod tracks;
 
+pub use completion::TrackCompletion;
 pub use error::SelfCalibrationError;
 pub use map::{BuiltMap, MapOptions, build_map};
 pub use selfcalib::{

@@ -14,7 +14,9 @@
 //!    points (Cauchy loss; gauge: the reference camera, the first frame, and the baseline from
 //!    camera 0 to the camera farthest from it); the tracks are triangulated again from the
 //!    refined poses and the adjustment repeated until the extrinsics stop changing
-//!    (TrimBot's loop).
+//!    (TrimBot's loop). After the first round the tracks are completed and merged by guided
+//!    matching of the adjusted points ([`TrackCompletion`]): the verified pairs split a
+//!    landmark into several tracks, and the merged ones link the cameras.
 //! 4. Scale: the rig's trajectory against the odometry's, when the log has it: Guo, Mirzaei and
 //!    Roumeliotis's planar hand-eye method with an unknown scale (ICRA 2012) on the motions over
 //!    windows of 8 frames for wheel odometry; for 6-DoF odometry, Daniilidis's rotation (IJRR
@@ -42,6 +44,7 @@ use nalgebra::{
 };
 use rayon::prelude::*;
 
+use super::completion::{Completed, TrackCompletion, complete_tracks};
 use super::error::SelfCalibrationError;
 use super::tracks::{TrackOptions, Tracks, build_tracks_with_rig};
 use crate::NonExhaustive;
@@ -112,8 +115,9 @@ pub struct SelfCalibrationOptions {
     /// adjustment of a round that is not the last stops (default 1e-4; the last round uses
     /// the solver's own `function_tolerance`). The next round re-triangulates every track and
     /// adjusts again from where this one stopped, so polishing an intermediate solution to
-    /// the solver's 1e-6 only costs iterations. Unused when the extrinsics are estimated,
-    /// whose rounds are compared with their standard deviations.
+    /// the solver's 1e-6 only costs iterations. When the extrinsics are estimated, whose rounds
+    /// are compared with their standard deviations, only a round followed by a track
+    /// completion (which places the points for it) stops there.
     pub intermediate_function_tolerance: f64,
     /// Whether the translation averaging also uses the distances the odometry travelled
     /// between consecutive frames of (nearly) the same heading, and how much it trusts them
@@ -121,6 +125,11 @@ pub struct SelfCalibrationOptions {
     /// leave the spacing of frames along a straight drive undetermined; these distances fix it
     /// and the scale. Unused when the log has no odometry.
     pub odometry_distances: Option<OdometryDistances>,
+    /// Whether the tracks are completed and merged by guided matching after the first rounds
+    /// ([`TrackCompletion`]; default on, with its defaults). The verified pairs split a
+    /// landmark into several tracks and leave many of its observations out; the rounds after a
+    /// completion adjust the longer tracks.
+    pub track_completion: Option<TrackCompletion>,
     /// Keeps the struct open to new fields: build it with `..Default::default()`.
     #[doc(hidden)]
     pub non_exhaustive: NonExhaustive,
@@ -147,6 +156,7 @@ impl Default for SelfCalibrationOptions {
             scale: ScaleSource::Auto,
             intermediate_function_tolerance: 1e-4,
             odometry_distances: None,
+            track_completion: Some(TrackCompletion::default()),
             non_exhaustive: NonExhaustive(()),
         }
     }
@@ -252,6 +262,11 @@ pub struct Round {
     pub rotation_change: f64,
     /// Largest change of an extrinsic translation in the round, in the reconstruction's unit.
     pub translation_change: f64,
+    /// Observations added to tracks by the completion after the round
+    /// ([`SelfCalibrationOptions::track_completion`]).
+    pub completed_observations: usize,
+    /// Tracks merged into another by the completion after the round.
+    pub merged_tracks: usize,
 }
 
 /// Counts of the feature tracking.
@@ -399,7 +414,7 @@ pub(crate) fn reconstruct<D: Descriptor>(
         });
     }
     // Held extrinsics verify the pairs of one frame by themselves.
-    let tracks = build_tracks_with_rig(log, cameras, known.filter(|_| held), &options.tracks)?;
+    let mut tracks = build_tracks_with_rig(log, cameras, known.filter(|_| held), &options.tracks)?;
     if tracks.pairs.is_empty() {
         return Err(SelfCalibrationError::NoVerifiedPairs {
             candidates: tracks.candidate_pairs,
@@ -624,8 +639,13 @@ pub(crate) fn reconstruct<D: Descriptor>(
         let settles = rounds.last().is_some_and(|previous: &Round| {
             triangulated.observations.len() <= previous.observations + previous.observations / 1000
         });
+        // A round whose tracks are completed after it only places the points for that.
+        let completes = !last
+            && options
+                .track_completion
+                .is_some_and(|completion| round < completion.rounds);
         let mut solver = options.solver.clone();
-        if held && !last && !settles {
+        if (held && !last && !settles) || completes {
             solver.function_tolerance = solver
                 .function_tolerance
                 .max(options.intermediate_function_tolerance);
@@ -726,6 +746,18 @@ pub(crate) fn reconstruct<D: Descriptor>(
             track_points[track] = Some(*point);
         }
         covariance = scaled;
+        let completed = match &options.track_completion {
+            Some(completion) if completes => complete_tracks(
+                &mut tracks,
+                &mut track_points,
+                log,
+                cameras,
+                (&world_from_rig, &rig_from_camera),
+                completion,
+                options.outlier_threshold_px,
+            ),
+            _ => Completed::default(),
+        };
         rounds.push(Round {
             points: points.len(),
             observations: triangulated.observations.len(),
@@ -735,9 +767,14 @@ pub(crate) fn reconstruct<D: Descriptor>(
             iterations: solved.summary.iterations,
             rotation_change,
             translation_change,
+            completed_observations: completed.extended,
+            merged_tracks: completed.merged,
         });
         // With known extrinsics nothing moves them: the rounds stop when the observations
-        // admitted settle (fewer than 0.1 % more).
+        // admitted settle (fewer than 0.1 % more). Completed tracks are adjusted first.
+        if completed != Completed::default() {
+            continue;
+        }
         if (held && settles)
             || (!held && within_uncertainty)
             || (!held
@@ -878,6 +915,20 @@ fn check_options(
                     format!("must be finite and not negative, got {value}"),
                 );
             }
+        }
+    }
+    if let Some(c) = &options.track_completion {
+        if !(c.radius_px.is_finite() && c.radius_px > 0.0) {
+            return invalid(
+                "track_completion.radius_px",
+                format!("must be finite and positive, got {}", c.radius_px),
+            );
+        }
+        if !(c.ratio > 0.0 && c.ratio <= 1.0) {
+            return invalid(
+                "track_completion.ratio",
+                format!("must be in (0, 1], got {}", c.ratio),
+            );
         }
     }
     if let ScaleSource::Baseline { a, b, distance_m } = options.scale
