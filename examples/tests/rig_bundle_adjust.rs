@@ -286,9 +286,9 @@ fn full_garage_meets_colmap_points_free_and_intrinsics_free() {
 /// above 0.003 deg; translations 0.28-0.48 mm after aligning the scale. So the 0.003 deg bar
 /// lies below what the best estimator reaches on most worlds of this scenario, even with
 /// perfect tracks (COLMAP's 0.0030 deg is one world's draw). On seed 1, the world of the
-/// self-calibration test (`selfcalib.rs`, `pentagon_rig_in_the_garden`): 0.0037 deg / 0.38 mm
-/// here (0.0042 deg / 0.46 mm with the Cauchy loss), against 0.0043 deg / 0.35 mm from the
-/// self-calibration's own tracks, completed (0.0079 deg / 0.57 mm before the completion).
+/// self-calibration's pentagon test (`selfcalib.rs`): 0.0037 deg / 0.38 mm here (0.0042 deg /
+/// 0.46 mm with the Cauchy loss), against 0.0043 deg / 0.35 mm from the self-calibration's own
+/// tracks, completed (0.0079 deg / 0.57 mm before the completion).
 #[test]
 fn pentagon_with_perfect_tracks_is_efficient_and_the_rotation_bar_below_its_spread() {
     let mut worst = Vec::new();
