@@ -144,11 +144,35 @@ fn options(s: &Setup) -> RigBundleAdjustmentOptions {
     }
 }
 
+/// The calling thread's user and system CPU seconds (Linux's `/proc/thread-self/stat`, in
+/// its fixed 100 ticks a second; `None` elsewhere). The solves run on this thread, and on the
+/// shared VM the system time (the kernel clearing fresh pages) varies from run to run.
+fn thread_cpu() -> Option<(f64, f64)> {
+    let stat = std::fs::read_to_string("/proc/thread-self/stat").ok()?;
+    // Fields after the command name (which ends at the last ')'): utime and stime are the
+    // 12th and 13th.
+    let fields: Vec<&str> = stat.rsplit_once(')')?.1.split_whitespace().collect();
+    let ticks = |i: usize| fields.get(i)?.parse::<f64>().ok();
+    Some((ticks(11)? / 100.0, ticks(12)? / 100.0))
+}
+
+/// "user U s, system S s" of the CPU time between two [`thread_cpu`] readings.
+fn cpu_since(start: Option<(f64, f64)>) -> String {
+    match (start, thread_cpu()) {
+        (Some((u0, s0)), Some((u1, s1))) => {
+            format!("user {:.2} s, system {:.2} s", u1 - u0, s1 - s0)
+        }
+        _ => "CPU time not available".into(),
+    }
+}
+
 /// Points free, then points and intrinsics free (focal lengths starting 1 px off).
 fn points_then_intrinsics(s: &Setup) -> ((f64, f64), (f64, f64, f64)) {
     let t = Instant::now();
+    let cpu = thread_cpu();
     let r = s.problem.solve(&options(s)).unwrap();
     let seconds = t.elapsed().as_secs_f64();
+    eprintln!("points free: {}", cpu_since(cpu));
     let points_free = worst_error(&s.truth_rig_from_camera, &r);
     eprintln!(
         "points free: {} observations, {} points; worst {:.5} deg / {:.3} mm; rms {:.3} -> {:.3} px; {} iterations, {}; {seconds:.2} s",
@@ -179,6 +203,7 @@ fn points_then_intrinsics(s: &Setup) -> ((f64, f64), (f64, f64, f64)) {
         c.set_params(&p).unwrap();
     }
     let t = Instant::now();
+    let cpu = thread_cpu();
     let r = start
         .solve(&RigBundleAdjustmentOptions {
             optimize_intrinsics: true,
@@ -186,6 +211,7 @@ fn points_then_intrinsics(s: &Setup) -> ((f64, f64), (f64, f64, f64)) {
         })
         .unwrap();
     let seconds = t.elapsed().as_secs_f64();
+    eprintln!("intrinsics free: {}", cpu_since(cpu));
     let (deg, mm) = worst_error(&s.truth_rig_from_camera, &r);
     let focal = r
         .cameras
