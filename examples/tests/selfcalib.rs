@@ -17,7 +17,8 @@ use ibc_pipeline::ibc_camera_models::Camera;
 use ibc_pipeline::nalgebra::Isometry3;
 use ibc_pipeline::sfm::{
     OdometryDistances, ScaleEstimate, ScaleSource, SelfCalibration, SelfCalibrationError,
-    SelfCalibrationOptions, TrackOptions, build_tracks_with_rig, extrinsic_errors, self_calibrate,
+    SelfCalibrationOptions, TrackCompletion, TrackOptions, build_tracks_with_rig, extrinsic_errors,
+    self_calibrate,
 };
 use ibc_pipeline::sim::{Scenario, SimulatedWorld};
 
@@ -268,6 +269,26 @@ fn bad_input_is_a_typed_error() {
                 ..Default::default()
             },
             "odometry_distances.max_turn_rad",
+        ),
+        (
+            SelfCalibrationOptions {
+                track_completion: Some(TrackCompletion {
+                    radius_px: f64::NAN,
+                    ..Default::default()
+                }),
+                ..Default::default()
+            },
+            "track_completion.radius_px",
+        ),
+        (
+            SelfCalibrationOptions {
+                track_completion: Some(TrackCompletion {
+                    max_descriptor_fraction: 0.0,
+                    ..Default::default()
+                }),
+                ..Default::default()
+            },
+            "track_completion.max_descriptor_fraction",
         ),
     ] {
         let error = self_calibrate(&world.log, &all, &options).expect_err("invalid option");

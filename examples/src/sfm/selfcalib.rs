@@ -930,6 +930,12 @@ fn check_options(
                 format!("must be in (0, 1], got {}", c.ratio),
             );
         }
+        if !(c.max_descriptor_fraction > 0.0 && c.max_descriptor_fraction <= 1.0) {
+            return invalid(
+                "track_completion.max_descriptor_fraction",
+                format!("must be in (0, 1], got {}", c.max_descriptor_fraction),
+            );
+        }
     }
     if let ScaleSource::Baseline { a, b, distance_m } = options.scale
         && (a >= cameras || b >= cameras || a == b || !(distance_m > 0.0 && distance_m.is_finite()))
