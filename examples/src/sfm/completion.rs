@@ -46,7 +46,9 @@ pub struct TrackCompletion {
     /// are normalized). Default 0.25: 64 of ORB's 256 bits (ORB-SLAM's search by projection
     /// takes 50 to 100), 0.5 for unit float descriptors.
     pub max_descriptor_fraction: f64,
-    /// After how many of the first rounds the tracks are completed. Default 1.
+    /// How many times the tracks are completed: after each of the first rounds whose RMS
+    /// reprojection error is within `radius_px` (the projections are only as good as the
+    /// adjustment). Default 1.
     pub rounds: usize,
 }
 

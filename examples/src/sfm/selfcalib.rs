@@ -578,6 +578,7 @@ pub(crate) fn reconstruct<D: Descriptor>(
     // Each track's point from the last adjustment: the next round starts from it.
     let mut track_points: Vec<Option<Point3<f64>>> = vec![None; tracks.tracks.len()];
     let mut final_observations = Vec::new();
+    let mut completions = 0;
     for round in 0..options.max_rounds {
         let last = round + 1 == options.max_rounds;
         let triangulated = triangulate_tracks(
@@ -639,11 +640,11 @@ pub(crate) fn reconstruct<D: Descriptor>(
         let settles = rounds.last().is_some_and(|previous: &Round| {
             triangulated.observations.len() <= previous.observations + previous.observations / 1000
         });
-        // A round whose tracks are completed after it only places the points for that.
+        // While a completion is due, a round only places the points for it.
         let completes = !last
             && options
                 .track_completion
-                .is_some_and(|completion| round < completion.rounds);
+                .is_some_and(|completion| completions < completion.rounds);
         let mut solver = options.solver.clone();
         if (held && !last && !settles) || completes {
             solver.function_tolerance = solver
@@ -746,16 +747,21 @@ pub(crate) fn reconstruct<D: Descriptor>(
             track_points[track] = Some(*point);
         }
         covariance = scaled;
+        // The projections are only as good as the adjustment: the completion waits for a
+        // round whose RMS reprojection error is within its search radius.
         let completed = match &options.track_completion {
-            Some(completion) if completes => complete_tracks(
-                &mut tracks,
-                &mut track_points,
-                log,
-                cameras,
-                (&world_from_rig, &rig_from_camera),
-                completion,
-                options.outlier_threshold_px,
-            ),
+            Some(completion) if completes && solved.final_rms <= completion.radius_px => {
+                completions += 1;
+                complete_tracks(
+                    &mut tracks,
+                    &mut track_points,
+                    log,
+                    cameras,
+                    (&world_from_rig, &rig_from_camera),
+                    completion,
+                    options.outlier_threshold_px,
+                )
+            }
             _ => Completed::default(),
         };
         rounds.push(Round {
