@@ -14,9 +14,10 @@
 //!    points (Cauchy loss; gauge: the reference camera, the first frame, and the baseline from
 //!    camera 0 to the camera farthest from it); the tracks are triangulated again from the
 //!    refined poses and the adjustment repeated until the extrinsics stop changing
-//!    (TrimBot's loop). After the first round the tracks are completed and merged by guided
-//!    matching of the adjusted points ([`TrackCompletion`]): the verified pairs split a
-//!    landmark into several tracks, and the merged ones link the cameras.
+//!    (TrimBot's loop). After the first round whose reprojection error is within the search
+//!    radius, the tracks are completed and merged by guided matching of the adjusted points
+//!    ([`TrackCompletion`]): the verified pairs split a landmark into several tracks, and the
+//!    merged ones link the cameras.
 //! 4. Scale: the rig's trajectory against the odometry's, when the log has it: Guo, Mirzaei and
 //!    Roumeliotis's planar hand-eye method with an unknown scale (ICRA 2012) on the motions over
 //!    windows of 8 frames for wheel odometry; for 6-DoF odometry, Daniilidis's rotation (IJRR
@@ -116,8 +117,8 @@ pub struct SelfCalibrationOptions {
     /// the solver's own `function_tolerance`). The next round re-triangulates every track and
     /// adjusts again from where this one stopped, so polishing an intermediate solution to
     /// the solver's 1e-6 only costs iterations. When the extrinsics are estimated, whose rounds
-    /// are compared with their standard deviations, only a round followed by a track
-    /// completion (which places the points for it) stops there.
+    /// are compared with their standard deviations, only the rounds before the track
+    /// completion (which place the points for it) stop there.
     pub intermediate_function_tolerance: f64,
     /// Whether the translation averaging also uses the distances the odometry travelled
     /// between consecutive frames of (nearly) the same heading, and how much it trusts them
