@@ -5,12 +5,13 @@
 //! §11.6; track continuation and merging as in Schönberger and Frahm, "Structure-from-Motion
 //! Revisited", CVPR 2016, §4.5): the verified pairs link a landmark's observations only where
 //! two images were matched with each other, so one landmark ends up in several tracks (on the
-//! simulated pentagon, five on average) and many of its observations in none. After a round's
-//! adjustment each track's point is projected into every posed image of every camera within
-//! [`TrackCompletion::window_frames`] of its own frames; the keypoint nearest the projection
-//! within [`TrackCompletion::radius_px`] is taken when its descriptor is near the track's
-//! and unambiguous among the keypoints there (the ratio test of the matching, restricted to
-//! the search disc):
+//! simulated pentagon a median of five to six) and many of its observations in none. After the
+//! first round whose RMS reprojection error is within the search radius (the projections are
+//! only as good as the adjustment), each track's point is projected into every posed image of
+//! every camera within [`TrackCompletion::window_frames`] of its own frames; the keypoint
+//! nearest the projection within [`TrackCompletion::radius_px`] is taken when its descriptor is
+//! near the track's and unambiguous among the keypoints there (the ratio test of the matching,
+//! restricted to the search disc):
 //! - a keypoint no track holds joins the track;
 //! - a keypoint another track holds merges the two tracks, when they share no image and each
 //!   point reprojects within the outlier threshold in every observation of the other.
