@@ -250,7 +250,8 @@ pub struct RelativePose {
 /// module documentation, and in front of both cameras (or too far for the sign of their depths
 /// to tell, as in [`relative_pose`]). With `t = 0` (the same centre) the epipolar constraint
 /// says nothing: a correspondence is consistent when the rotation model's distance (the angle
-/// between `R a` and `b` over `sqrt 2`, the module documentation's) is within `threshold`. The norm of `t` does not matter.
+/// between `R a` and `b` over `sqrt 2`, the module documentation's) is within `threshold`.
+/// The norm of `t` does not matter.
 ///
 /// # Errors
 /// [`RelativePoseError::LengthMismatch`], [`RelativePoseError::NonFiniteBearing`] and

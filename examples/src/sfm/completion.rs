@@ -214,13 +214,10 @@ pub(crate) fn complete_tracks<D: Descriptor>(
             Some((pose * rig_from_camera[id.camera]).inverse())
         })
         .collect();
-    let camera_from_world = |image: usize| poses[image];
     let reprojects = |image: usize, k: u32, point: &Point3<f64>| -> bool {
         let id = tracks.images[image];
-        let (Some(pose), Some(pixel)) = (
-            camera_from_world(image),
-            features(image).keypoints.get(k as usize),
-        ) else {
+        let (Some(pose), Some(pixel)) = (poses[image], features(image).keypoints.get(k as usize))
+        else {
             return false;
         };
         cameras[id.camera]
@@ -269,7 +266,7 @@ pub(crate) fn complete_tracks<D: Descriptor>(
                     if held.binary_search(&image).is_ok() {
                         continue;
                     }
-                    let Some(pose) = camera_from_world(image) else {
+                    let Some(pose) = poses[image] else {
                         continue;
                     };
                     let Ok(projection) = cameras[camera].project(&(pose * point).coords) else {
