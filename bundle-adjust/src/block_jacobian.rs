@@ -38,28 +38,3 @@ pub(crate) fn scale_columns(program: &Program, jac: &mut [f64], scale: &[f64]) {
         }
     });
 }
-
-/// The decrease of the Gauss-Newton model ½|r + J δ|² from ½|r|²:
-/// −(Jδ)ᵀ(r + Jδ/2).
-pub(crate) fn model_cost_change(
-    program: &Program,
-    jac: &[f64],
-    residuals: &[f64],
-    delta: &[f64],
-) -> f64 {
-    let mut jd = vec![0.0; program.n_res_values];
-    for_each_block(program, |i, start, rows, cols, col| {
-        let d = &delta[col..col + cols];
-        let off = program.res[i].res_off;
-        for (k, row) in jac[start..start + rows * cols]
-            .chunks_exact(cols)
-            .enumerate()
-        {
-            jd[off + k] += row.iter().zip(d).map(|(a, b)| a * b).sum::<f64>();
-        }
-    });
-    jd.iter()
-        .zip(residuals)
-        .map(|(v, r)| -v * (r + 0.5 * v))
-        .sum()
-}

@@ -54,9 +54,17 @@ impl SchurJacobi {
         }
         true
     }
+}
 
+/// A symmetric positive definite approximation M of the reduced matrix, applied as its
+/// inverse.
+pub(crate) trait Preconditioner {
     /// z = M⁻¹ r.
-    fn apply(&self, program: &Program, r: &[f64], z: &mut [f64]) {
+    fn apply(&mut self, program: &Program, r: &[f64], z: &mut [f64]);
+}
+
+impl Preconditioner for SchurJacobi {
+    fn apply(&mut self, program: &Program, r: &[f64], z: &mut [f64]) {
         z.copy_from_slice(r);
         let mut start = 0;
         for k in 0..program.f_blocks.len() {
@@ -71,11 +79,15 @@ impl SchurJacobi {
 }
 
 /// Outcome of a CG solve.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) struct CgResult {
     pub iterations: usize,
     /// False on a numerical breakdown (ρ = rᵀz zero or infinite).
     pub ok: bool,
+    /// The stopping rule was met (not the iteration limit or an indefinite direction).
+    pub converged: bool,
+    /// The quadratic model at the returned x, Q(x) = xᵀSx − 2bᵀx.
+    pub q: f64,
 }
 
 /// Solves S x = b, S applied implicitly through `schur`, starting from x = 0.
@@ -84,7 +96,7 @@ pub(crate) fn solve(
     schur: &mut SchurComplement,
     program: &Program,
     layout: &ReducedLayout,
-    preconditioner: &SchurJacobi,
+    preconditioner: &mut dyn Preconditioner,
     diag_f: &[f64],
     b: &[f64],
     x: &mut [f64],
@@ -98,6 +110,8 @@ pub(crate) fn solve(
         return CgResult {
             iterations: 0,
             ok: true,
+            converged: true,
+            q: 0.0,
         };
     }
     let mut r = b.to_vec();
@@ -117,6 +131,8 @@ pub(crate) fn solve(
             return CgResult {
                 iterations: iteration,
                 ok: false,
+                converged: false,
+                q: q0,
             };
         }
         if iteration == 1 {
@@ -127,6 +143,8 @@ pub(crate) fn solve(
                 return CgResult {
                     iterations: iteration,
                     ok: false,
+                    converged: false,
+                    q: q0,
                 };
             }
             for (pi, zi) in p.iter_mut().zip(&z) {
@@ -140,6 +158,8 @@ pub(crate) fn solve(
             return CgResult {
                 iterations: iteration,
                 ok: true,
+                converged: false,
+                q: q0,
             };
         }
         let alpha = rho / pq;
@@ -166,6 +186,8 @@ pub(crate) fn solve(
             return CgResult {
                 iterations: iteration,
                 ok: true,
+                converged: true,
+                q: q1,
             };
         }
         q0 = q1;
@@ -173,6 +195,8 @@ pub(crate) fn solve(
             return CgResult {
                 iterations: iteration,
                 ok: true,
+                converged: false,
+                q: q1,
             };
         }
         iteration += 1;

@@ -74,7 +74,8 @@ pub(crate) struct ReducedLayout {
     c_start: Vec<usize>,
     c_first: usize,
     c_pairs: Vec<CPair>,
-    /// Address of each reduced block's diagonal block of S (or of the preconditioner).
+    /// Address of each reduced block's diagonal block of S (or of the preconditioner; empty
+    /// for an implicit target without it).
     pub diag_addr: Vec<usize>,
     /// Implicit target: address of each reduced block's diagonal block of C.
     pub c_diag_addr: Vec<usize>,
@@ -299,6 +300,19 @@ impl ReducedLayout {
             layout.c_diag_addr = c_diag;
         }
         layout
+    }
+
+    /// The implicit target without the preconditioner's blocks (C's only), for conjugate
+    /// gradients preconditioned otherwise ([`crate::SolverOptions::reuse_factorization`]):
+    /// the elimination then skips the diagonal blocks of S.
+    pub(crate) fn without_preconditioner(mut self) -> Self {
+        if self.kind == TargetKind::Implicit
+            && let Some(&first) = self.diag_addr.first()
+        {
+            self.len = first;
+            self.diag_addr.clear();
+        }
+        self
     }
 }
 

@@ -222,6 +222,7 @@ impl Default for RigBundleAdjustmentOptions {
             covariance: false,
             solver: SolverOptions {
                 loss_curvature: LossCurvature::InlierCurvature,
+                reuse_factorization: true,
                 ..SolverOptions::default()
             },
             non_exhaustive: NonExhaustive(()),

@@ -27,6 +27,34 @@ use crate::program::{NONE, Program};
 use crate::reduced::{ReducedLayout, TargetKind};
 use crate::simd::{Isa, Kernel, MulAdd, Plain, dispatch};
 
+/// Evaluates `$kernel` with `$size` bound to `$fixed`, a constant when it is one of the
+/// reduced block sizes of a rig bundle adjustment (5: a pose on a sphere, 6: a pose, 8 and 9:
+/// the intrinsics of the camera models), so that the inlined kernel's loops are unrolled; the
+/// same operations in the same order either way, so the same result.
+macro_rules! with_fixed_size {
+    ($size:expr, |$fixed:ident| $kernel:expr) => {
+        match $size {
+            5 => {
+                let $fixed = 5;
+                $kernel
+            }
+            6 => {
+                let $fixed = 6;
+                $kernel
+            }
+            8 => {
+                let $fixed = 8;
+                $kernel
+            }
+            9 => {
+                let $fixed = 9;
+                $kernel
+            }
+            $fixed => $kernel,
+        }
+    };
+}
+
 /// Per-solve buffers of the elimination.
 pub(crate) struct SchurComplement {
     /// Chunk ranges, one per worker.
@@ -45,6 +73,19 @@ pub(crate) struct SchurComplement {
 
 impl SchurComplement {
     pub(crate) fn new(program: &Program, layout: &ReducedLayout, threads: usize) -> Self {
+        Self::with_layouts(program, &[layout], threads)
+    }
+
+    /// Buffers for eliminating into any of `layouts` (the target sized for the longest; the
+    /// implicit product's accumulators if one is implicit): the sparse solver's reuse of its
+    /// factorization alternates a blocks target with an implicit one.
+    pub(crate) fn with_layouts(
+        program: &Program,
+        layouts: &[&ReducedLayout],
+        threads: usize,
+    ) -> Self {
+        let len = layouts.iter().map(|l| l.len).max().unwrap_or(0);
+        let implicit = layouts.iter().any(|l| l.kind == TargetKind::Implicit);
         let partitions = balanced_ranges(program.chunks.len(), threads, |c| {
             let ch = &program.chunks[c];
             let k = ch.f.len();
@@ -56,9 +97,9 @@ impl SchurComplement {
             v: vec![0.0; program.v_len],
             l: vec![0.0; program.l_len],
             y: vec![0.0; program.n_e],
-            targets: (0..parts).map(|_| vec![0.0; layout.len]).collect(),
+            targets: (0..parts).map(|_| vec![0.0; len]).collect(),
             rhs: (0..parts).map(|_| vec![0.0; program.n_f]).collect(),
-            product: if layout.kind == TargetKind::Implicit {
+            product: if implicit {
                 (0..parts).map(|_| vec![0.0; program.n_f]).collect()
             } else {
                 Vec::new()
@@ -125,7 +166,7 @@ impl SchurComplement {
             .collect();
         let isa = self.isa;
         let ok = exec.map(work, |(p, range, v, l, y, target, rhs)| {
-            target.fill(0.0);
+            target[..layout.len].fill(0.0);
             rhs.fill(0.0);
             let task = EliminateTask {
                 program,
@@ -145,7 +186,7 @@ impl SchurComplement {
         // Sum the partitions in order.
         let (first, rest) = self.targets.split_at_mut(1);
         for t in rest {
-            for (a, b) in first[0].iter_mut().zip(t.iter()) {
+            for (a, b) in first[0][..layout.len].iter_mut().zip(t.iter()) {
                 *a += b;
             }
         }
@@ -179,6 +220,11 @@ impl SchurComplement {
             }
         }
         ok
+    }
+
+    /// |L⁻¹ g_e|² = g_eᵀ A⁻¹ g_e of the last elimination.
+    pub(crate) fn eliminated_norm2(&self) -> f64 {
+        self.y.iter().map(|v| v * v).sum()
     }
 
     /// δe from δf (both in the scaled tangent vector `delta`, whose reduced part is filled).
@@ -378,17 +424,28 @@ impl Kernel for ProductTask<'_> {
                     &mut zv
                 };
                 let fs = &program.chunk_f[c.f.clone()];
+                // A point's (e = 3) products with compile-time sizes on the dynamic shape.
                 for (p, &fp) in fs.iter().enumerate() {
                     let m = shape.f(program.f_size(fp as usize));
                     let vo = c.v_off + program.chunk_f_voff[c.f.start + p];
                     let off = program.f_offset[fp as usize];
-                    add_at_x::<M>(z, &v[vo..vo + m * e], &x[off..off + m], m, e);
+                    let (vp, xp) = (&v[vo..vo + m * e], &x[off..off + m]);
+                    if e == 3 {
+                        with_fixed_size!(m, |fm| add_at_x::<M>(z, vp, xp, fm, 3));
+                    } else {
+                        add_at_x::<M>(z, vp, xp, m, e);
+                    }
                 }
                 for (p, &fp) in fs.iter().enumerate() {
                     let m = shape.f(program.f_size(fp as usize));
                     let vo = c.v_off + program.chunk_f_voff[c.f.start + p];
                     let off = program.f_offset[fp as usize];
-                    sub_a_x::<M>(&mut acc[off..off + m], &v[vo..vo + m * e], z, m, e);
+                    let (vp, out) = (&v[vo..vo + m * e], &mut acc[off..off + m]);
+                    if e == 3 {
+                        with_fixed_size!(m, |fm| sub_a_x::<M>(out, vp, z, fm, 3));
+                    } else {
+                        sub_a_x::<M>(out, vp, z, m, e);
+                    }
                 }
             }
         });
@@ -400,34 +457,6 @@ struct ChunkBuffers<'a> {
     v: &'a mut [f64],
     l: &'a mut [f64],
     y: &'a mut [f64],
-}
-
-/// Evaluates `$kernel` with `$size` bound to `$fixed`, a constant when it is one of the
-/// reduced block sizes of a rig bundle adjustment (5: a pose on a sphere, 6: a pose, 8 and 9:
-/// the intrinsics of the camera models), so that the inlined kernel's loops are unrolled; the
-/// same operations in the same order either way, so the same result.
-macro_rules! with_fixed_size {
-    ($size:expr, |$fixed:ident| $kernel:expr) => {
-        match $size {
-            5 => {
-                let $fixed = 5;
-                $kernel
-            }
-            6 => {
-                let $fixed = 6;
-                $kernel
-            }
-            8 => {
-                let $fixed = 8;
-                $kernel
-            }
-            9 => {
-                let $fixed = 9;
-                $kernel
-            }
-            $fixed => $kernel,
-        }
-    };
 }
 
 /// Consecutive chunks whose products V_p V_qᵀ are applied together, block by block: each
@@ -576,8 +605,7 @@ fn eliminate_range<S: Shape, M: MulAdd>(
                 }
                 if full {
                     group.entries.push((fp, g as u32, v_start + voffs[p]));
-                } else {
-                    let addr = layout.diag_addr[fp as usize];
+                } else if let Some(&addr) = layout.diag_addr.get(fp as usize) {
                     sub_a_bt::<M>(target, addr, m, vp, vp, m, m, e);
                 }
             }

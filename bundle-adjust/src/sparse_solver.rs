@@ -1,17 +1,21 @@
 //! Sparse Cholesky solve of the reduced system with faer: the lower triangle of S is
 //! expanded from its stored blocks into compressed columns, the fill-reducing (AMD) ordering
 //! and symbolic factorization are computed once per solve, and each iteration only runs the
-//! numeric factorization and the triangular solves.
+//! numeric factorization and the triangular solves. The last factor is kept: it
+//! preconditions the conjugate gradients of the steps that reuse it
+//! ([`crate::SolverOptions::reuse_factorization`]).
 
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::cholesky::llt::factor::LltRegularization;
 use faer::sparse::linalg::cholesky::{
-    CholeskySymbolicParams, SymbolicCholesky, SymmetricOrdering, factorize_symbolic_cholesky,
+    CholeskySymbolicParams, LltRef, SymbolicCholesky, SymmetricOrdering,
+    factorize_symbolic_cholesky,
 };
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{Conj, MatMut, Par, Side};
 
 use crate::error::{BundleAdjustError, Result};
+use crate::pcg::Preconditioner;
 use crate::program::Program;
 use crate::reduced::ReducedLayout;
 
@@ -26,6 +30,8 @@ pub(crate) struct SparseSolver {
     values: Vec<f64>,
     symbolic: SymbolicCholesky<usize>,
     l_values: Vec<f64>,
+    /// `l_values` holds the factor of a positive definite matrix.
+    factored: bool,
     scratch: MemBuffer,
 }
 
@@ -89,6 +95,7 @@ impl SparseSolver {
             values,
             symbolic,
             l_values,
+            factored: false,
             scratch: MemBuffer::new(req),
         })
     }
@@ -112,6 +119,7 @@ impl SparseSolver {
         );
         let a = SparseColMatRef::new(structure, &self.values);
         let stack = MemStack::new(&mut self.scratch);
+        self.factored = false;
         let Ok(llt) = self.symbolic.factorize_numeric_llt(
             &mut self.l_values,
             a,
@@ -125,6 +133,30 @@ impl SparseSolver {
         };
         let b = MatMut::from_column_major_slice_mut(x, self.n, 1);
         llt.solve_in_place_with_conj(Conj::No, b, Par::Seq, stack);
+        self.factored = true;
         x.iter().all(|v| v.is_finite())
+    }
+
+    /// Whether a factor is kept (the last [`Self::solve`] factored its matrix).
+    pub(crate) fn factored(&self) -> bool {
+        self.factored
+    }
+
+    /// x = M⁻¹ `rhs` with M the matrix of the last factorization (requires [`Self::factored`]).
+    fn solve_with_factor(&mut self, rhs: &[f64], x: &mut [f64]) {
+        x.copy_from_slice(rhs);
+        if self.n == 0 {
+            return;
+        }
+        let llt = LltRef::new(&self.symbolic, &self.l_values);
+        let stack = MemStack::new(&mut self.scratch);
+        let b = MatMut::from_column_major_slice_mut(x, self.n, 1);
+        llt.solve_in_place_with_conj(Conj::No, b, Par::Seq, stack);
+    }
+}
+
+impl Preconditioner for SparseSolver {
+    fn apply(&mut self, _program: &Program, r: &[f64], z: &mut [f64]) {
+        self.solve_with_factor(r, z);
     }
 }

@@ -140,6 +140,10 @@ fn options(s: &Setup) -> RigBundleAdjustmentOptions {
             camera: 2,
             distance_m: s.baseline,
         },
+        solver: ibc_bundle_adjust::SolverOptions {
+            log_to_stderr: std::env::var("IBC_LOG").is_ok(),
+            ..RigBundleAdjustmentOptions::default().solver
+        },
         ..Default::default()
     }
 }
