@@ -117,9 +117,16 @@ fn rig_bundle_adjust(c: &mut Criterion) {
     group.bench_function("baseline: map-fixed rig refinement", |b| {
         b.iter(|| refinement.refine(&RigRefinementOptions::default()).unwrap())
     });
-    for (name, linear_solver) in [
-        ("sparse", LinearSolverType::SparseSchur),
-        ("iterative", LinearSolverType::IterativeSchur),
+    // The rig bundle adjustment's solver defaults (the sparse solver reusing its factor),
+    // against a factorization per step and the iterative solver.
+    for (name, linear_solver, reuse_factorization) in [
+        ("sparse", LinearSolverType::SparseSchur, true),
+        (
+            "sparse, a factorization per step",
+            LinearSolverType::SparseSchur,
+            false,
+        ),
+        ("iterative", LinearSolverType::IterativeSchur, false),
     ] {
         for intrinsics in [false, true] {
             let options = RigBundleAdjustmentOptions {
@@ -130,7 +137,8 @@ fn rig_bundle_adjust(c: &mut Criterion) {
                 optimize_intrinsics: intrinsics,
                 solver: SolverOptions {
                     linear_solver,
-                    ..Default::default()
+                    reuse_factorization,
+                    ..RigBundleAdjustmentOptions::default().solver
                 },
                 ..Default::default()
             };

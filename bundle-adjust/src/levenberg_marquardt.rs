@@ -9,7 +9,9 @@
 //! [`SolverOptions::min_relative_decrease`]; then μ ← μ / max(1/3, 1 − (2ρ − 1)³) and ν = 2,
 //! otherwise μ ← μ / ν, ν ← 2ν, and the Jacobian (and D) are reused. A step the linear
 //! solver cannot compute (a singular system) is treated as a rejected one, so it raises the
-//! damping.
+//! damping. The model decrease −(gᵀδ + ½ δᵀJᵀJδ) is found from the linear solver's value of
+//! the damped model, gᵀδ + ½ δᵀ(JᵀJ + D/μ)δ, computed on its reduced system, less
+//! ½ δᵀ(D/μ)δ: no pass over the Jacobian.
 
 use std::time::Instant;
 
@@ -32,6 +34,11 @@ fn initial_error(e: EvalError) -> BundleAdjustError {
         }
     }
 }
+
+/// A step's Jacobian is evaluated with its cost only when the model predicts a decrease
+/// above this many times the function tolerance (a step that would end the solve needs only
+/// its cost).
+const SPECULATION_MARGIN: f64 = 10.0;
 
 /// Max-norm and Euclidean norm of the unscaled gradient from the scaled one.
 fn gradient_norms(g_scaled: &[f64], scale: &[f64]) -> (f64, f64) {
@@ -184,6 +191,8 @@ pub(crate) fn solve(
         let mut reuse_diagonal = false;
         let mut invalid_steps = 0usize;
         let mut iteration = 0usize;
+        // The last step was accepted (or none was tried): speculate on the next.
+        let mut speculate_next = true;
         loop {
             let iteration_start = Instant::now();
             let other_start = Instant::now();
@@ -224,11 +233,6 @@ pub(crate) fn solve(
                     *u = s * sc;
                 }
                 plus(problem_ref, &program, &x, &unscaled, &mut candidate);
-                other += other_start.elapsed().as_secs_f64();
-                let t = Instant::now();
-                let candidate_cost = evaluator.cost(&candidate, &exec).unwrap_or(f64::INFINITY);
-                times.residual_evaluation += t.elapsed().as_secs_f64();
-                let other_start = Instant::now();
                 let step_norm = program
                     .active_blocks
                     .iter()
@@ -246,6 +250,45 @@ pub(crate) fn solve(
                 {
                     break Termination::ParameterTolerance;
                 }
+                // After an accepted step the next is likely accepted too: its Jacobian is
+                // then evaluated with its cost, in one pass, unless the model predicts a
+                // decrease small enough to end the solve. The buffers then hold the
+                // candidate's, and a rejection evaluates x's again.
+                let speculate = speculate_next
+                    && model_change > SPECULATION_MARGIN * options.function_tolerance * cost.abs();
+                other += other_start.elapsed().as_secs_f64();
+                let t = Instant::now();
+                let mut at_candidate = false;
+                let candidate_cost = if speculate {
+                    let acc = Accumulated {
+                        gradient: &mut g,
+                        column_norms: &mut column_norms,
+                    };
+                    match evaluator.jacobian(
+                        &candidate,
+                        &mut res,
+                        &mut jac,
+                        Some(&scale),
+                        acc,
+                        &exec,
+                    ) {
+                        Ok(c) => {
+                            at_candidate = true;
+                            times.jacobian_evaluation += t.elapsed().as_secs_f64();
+                            c
+                        }
+                        Err(_) => {
+                            let c = evaluator.cost(&candidate, &exec).unwrap_or(f64::INFINITY);
+                            times.residual_evaluation += t.elapsed().as_secs_f64();
+                            c
+                        }
+                    }
+                } else {
+                    let c = evaluator.cost(&candidate, &exec).unwrap_or(f64::INFINITY);
+                    times.residual_evaluation += t.elapsed().as_secs_f64();
+                    c
+                };
+                let other_start = Instant::now();
                 let cost_change = cost - candidate_cost;
                 entry.cost_change = cost_change;
                 if cost_change.abs() <= options.function_tolerance * cost {
@@ -264,22 +307,27 @@ pub(crate) fn solve(
                     linear.allow_reuse(cost_change <= 0.5 * cost);
                     core::mem::swap(&mut x, &mut candidate);
                     other += other_start.elapsed().as_secs_f64();
-                    let t = Instant::now();
-                    let acc = Accumulated {
-                        gradient: &mut g,
-                        column_norms: &mut column_norms,
-                    };
-                    let evaluated =
-                        evaluator.jacobian(&x, &mut res, &mut jac, Some(&scale), acc, &exec);
-                    times.jacobian_evaluation += t.elapsed().as_secs_f64();
-                    let other_start = Instant::now();
-                    match evaluated {
-                        Ok(c) => cost = c,
-                        Err(_) => {
-                            core::mem::swap(&mut x, &mut candidate);
-                            break Termination::EvaluationFailed;
+                    if at_candidate {
+                        cost = candidate_cost;
+                    } else {
+                        let t = Instant::now();
+                        let acc = Accumulated {
+                            gradient: &mut g,
+                            column_norms: &mut column_norms,
+                        };
+                        let evaluated =
+                            evaluator.jacobian(&x, &mut res, &mut jac, Some(&scale), acc, &exec);
+                        times.jacobian_evaluation += t.elapsed().as_secs_f64();
+                        match evaluated {
+                            Ok(c) => cost = c,
+                            Err(_) => {
+                                core::mem::swap(&mut x, &mut candidate);
+                                break Termination::EvaluationFailed;
+                            }
                         }
                     }
+                    let other_start = Instant::now();
+                    speculate_next = true;
                     x_norm = free_norm(problem_ref, &program, &x);
                     gmax = gradient_norms(&g, &scale).0;
                     let factor = 1.0 - (2.0 * relative_decrease - 1.0).powi(3);
@@ -292,6 +340,23 @@ pub(crate) fn solve(
                     entry.step_is_successful = true;
                     other += other_start.elapsed().as_secs_f64();
                 } else {
+                    if speculate {
+                        // The buffers hold the candidate's Jacobian: x's again.
+                        other += other_start.elapsed().as_secs_f64();
+                        let t = Instant::now();
+                        let acc = Accumulated {
+                            gradient: &mut g,
+                            column_norms: &mut column_norms,
+                        };
+                        let evaluated =
+                            evaluator.jacobian(&x, &mut res, &mut jac, Some(&scale), acc, &exec);
+                        times.jacobian_evaluation += t.elapsed().as_secs_f64();
+                        if evaluated.is_err() {
+                            break Termination::EvaluationFailed;
+                        }
+                    }
+                    let other_start = Instant::now();
+                    speculate_next = false;
                     // The same Jacobian, more damping: the last factor is close.
                     linear.allow_reuse(true);
                     radius /= decrease_factor;
