@@ -40,6 +40,22 @@ fn initial_error(e: EvalError) -> BundleAdjustError {
 /// its cost).
 const SPECULATION_MARGIN: f64 = 10.0;
 
+/// Scales the columns of a Jacobian evaluated without them, its gradient and its squared
+/// column norms by `scale`.
+fn apply_scale(
+    program: &Program,
+    scale: &[f64],
+    jac: &mut [f64],
+    g: &mut [f64],
+    column_norms: &mut [f64],
+) {
+    for ((s, c), gi) in scale.iter().zip(column_norms.iter_mut()).zip(g.iter_mut()) {
+        *c *= *s * *s;
+        *gi *= *s;
+    }
+    scale_columns(program, jac, scale);
+}
+
 /// Max-norm and Euclidean norm of the unscaled gradient from the scaled one.
 fn gradient_norms(g_scaled: &[f64], scale: &[f64]) -> (f64, f64) {
     let mut max = 0.0f64;
@@ -96,6 +112,17 @@ pub(crate) fn solve(
     options: &SolverOptions,
     callback: &mut dyn FnMut(&IterationSummary) -> IterationControl,
 ) -> Result<Summary> {
+    solve_with(problem, options, callback, true)
+}
+
+/// [`solve`], evaluating a candidate's Jacobian with its cost after accepted steps
+/// (`speculate`) or, as Ceres does, only once it is accepted: the same iterates either way.
+fn solve_with(
+    problem: &mut Problem,
+    options: &SolverOptions,
+    callback: &mut dyn FnMut(&IterationSummary) -> IterationControl,
+    speculate: bool,
+) -> Result<Summary> {
     let start = Instant::now();
     options.validate()?;
     problem.check_values()?;
@@ -132,16 +159,10 @@ pub(crate) fn solve(
         .map_err(initial_error)?;
     times.jacobian_evaluation += t.elapsed().as_secs_f64();
     if options.jacobi_scaling {
-        for ((s, c), gi) in scale
-            .iter_mut()
-            .zip(column_norms.iter_mut())
-            .zip(g.iter_mut())
-        {
+        for (s, c) in scale.iter_mut().zip(&column_norms) {
             *s *= 1.0 / (1.0 + c.sqrt());
-            *c *= *s * *s;
-            *gi *= *s;
         }
-        scale_columns(&program, &mut jac, &scale);
+        apply_scale(&program, &scale, &mut jac, &mut g, &mut column_norms);
     }
     let (mut gmax, _) = gradient_norms(&g, &scale);
 
@@ -192,7 +213,7 @@ pub(crate) fn solve(
         let mut invalid_steps = 0usize;
         let mut iteration = 0usize;
         // The last step was accepted (or none was tried): speculate on the next.
-        let mut speculate_next = true;
+        let mut speculate_next = speculate;
         loop {
             let iteration_start = Instant::now();
             let other_start = Instant::now();
@@ -327,7 +348,7 @@ pub(crate) fn solve(
                         }
                     }
                     let other_start = Instant::now();
-                    speculate_next = true;
+                    speculate_next = speculate;
                     x_norm = free_norm(problem_ref, &program, &x);
                     gmax = gradient_norms(&g, &scale).0;
                     let factor = 1.0 - (2.0 * relative_decrease - 1.0).powi(3);
@@ -341,15 +362,21 @@ pub(crate) fn solve(
                     other += other_start.elapsed().as_secs_f64();
                 } else {
                     if speculate {
-                        // The buffers hold the candidate's Jacobian: x's again.
+                        // The buffers hold the candidate's Jacobian: x's again, as it was
+                        // evaluated (the start's scaled after its evaluation), to the bit.
                         other += other_start.elapsed().as_secs_f64();
                         let t = Instant::now();
+                        let at_start = accepted == 0;
                         let acc = Accumulated {
                             gradient: &mut g,
                             column_norms: &mut column_norms,
                         };
+                        let fused = (!at_start).then_some(&scale[..]);
                         let evaluated =
-                            evaluator.jacobian(&x, &mut res, &mut jac, Some(&scale), acc, &exec);
+                            evaluator.jacobian(&x, &mut res, &mut jac, fused, acc, &exec);
+                        if at_start && options.jacobi_scaling {
+                            apply_scale(&program, &scale, &mut jac, &mut g, &mut column_norms);
+                        }
                         times.jacobian_evaluation += t.elapsed().as_secs_f64();
                         if evaluated.is_err() {
                             break Termination::EvaluationFailed;
@@ -412,4 +439,89 @@ pub(crate) fn solve(
         times,
         log,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::RobustLoss;
+    use crate::cost::{CostFunction, Jacobians};
+    use nalgebra::Matrix2;
+
+    /// Rosenbrock's valley as least squares, r = (10 (y − x²), 1 − x): from (−1.2, 1) the
+    /// trust region rejects steps after accepted ones.
+    struct Rosenbrock;
+
+    impl CostFunction for Rosenbrock {
+        fn num_residuals(&self) -> usize {
+            2
+        }
+        fn parameter_block_sizes(&self) -> &[usize] {
+            &[2]
+        }
+        fn evaluate(&self, p: &[&[f64]], r: &mut [f64], j: Option<&mut Jacobians<'_>>) -> bool {
+            let (x, y) = (p[0][0], p[0][1]);
+            r[0] = 10.0 * (y - x * x);
+            r[1] = 1.0 - x;
+            if let Some(j) = j {
+                j.set(0, &Matrix2::new(-20.0 * x, 10.0, -1.0, 0.0));
+            }
+            true
+        }
+    }
+
+    /// Speculative Jacobians change when the Jacobian is evaluated, not what it is: the
+    /// iteration logs agree to the bit, through rejected steps that follow accepted ones
+    /// (where the candidate's Jacobian is thrown away and x's evaluated again).
+    #[test]
+    fn speculative_jacobians_leave_the_iterates_unchanged() {
+        let mut logs = Vec::new();
+        for speculate in [false, true] {
+            let mut problem = Problem::new();
+            let b = problem.add_parameter_block(&[-1.2, 1.0]).unwrap();
+            problem
+                .add_residual_block(Rosenbrock, RobustLoss::Trivial, &[b])
+                .unwrap();
+            let options = SolverOptions {
+                max_iterations: 200,
+                function_tolerance: 1e-15,
+                // A large start radius: the first steps overshoot.
+                initial_trust_region_radius: 1e8,
+                ..SolverOptions::default()
+            };
+            let summary = solve_with(
+                &mut problem,
+                &options,
+                &mut |_| IterationControl::Continue,
+                speculate,
+            )
+            .unwrap();
+            assert!(summary.termination.is_converged(), "{}", summary.report());
+            let x = problem.parameter_block(b).unwrap();
+            assert!(
+                (x[0] - 1.0).abs() < 1e-6 && (x[1] - 1.0).abs() < 1e-6,
+                "{x:?}"
+            );
+            let rejected_after_accepted = summary
+                .log
+                .windows(2)
+                .any(|w| w[0].step_is_successful && !w[1].step_is_successful);
+            assert!(rejected_after_accepted, "{}", summary.report());
+            logs.push(
+                summary
+                    .log
+                    .iter()
+                    .map(|l| {
+                        (
+                            l.cost,
+                            l.step_norm,
+                            l.relative_decrease,
+                            l.gradient_max_norm,
+                        )
+                    })
+                    .collect::<Vec<_>>(),
+            );
+        }
+        assert_eq!(logs[0], logs[1]);
+    }
 }
