@@ -33,7 +33,7 @@ enum Reduced {
 
 /// Conjugate-gradient iterations a step preconditioned by an earlier factor may take before
 /// the reduced matrix is formed and factored afresh.
-pub(crate) const REUSE_MAX_ITERATIONS: usize = 20;
+const REUSE_MAX_ITERATIONS: usize = 20;
 
 /// The truncated-Newton tolerance η of a step preconditioned by an earlier factor: the
 /// quadratic model's last relative decrease, times the iteration count, below 1e-6, so that

@@ -10,6 +10,9 @@
 //! exact); every point moved 5 cm in a random direction; the rig poses the truth turned
 //! 0.1 degree about a random axis and moved 1 cm. The scale is fixed by the true front-rear
 //! baseline. The last test does the same on TrimBot2020's pentagon (issue 17's bar there).
+//!
+//! With `IBC_LOG` set in the environment the solves print their iteration logs (Ceres's
+//! format) to standard error.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
 use std::time::Instant;
@@ -140,7 +143,7 @@ fn options(s: &Setup) -> RigBundleAdjustmentOptions {
             camera: 2,
             distance_m: s.baseline,
         },
-        solver: ibc_bundle_adjust::SolverOptions {
+        solver: ibc_pipeline::ibc_bundle_adjust::SolverOptions {
             log_to_stderr: std::env::var("IBC_LOG").is_ok(),
             ..RigBundleAdjustmentOptions::default().solver
         },
