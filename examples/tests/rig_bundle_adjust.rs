@@ -19,7 +19,7 @@ use std::time::Instant;
 
 use ibc_pipeline::ibc_bundle_adjust::{
     RigBundleAdjustment, RigBundleAdjustmentOptions, RigBundleAdjustmentResult, RobustLoss,
-    ScaleGauge,
+    ScaleGauge, SolverOptions,
 };
 use ibc_pipeline::ibc_camera_models::CameraModel;
 use ibc_pipeline::nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
@@ -143,7 +143,7 @@ fn options(s: &Setup) -> RigBundleAdjustmentOptions {
             camera: 2,
             distance_m: s.baseline,
         },
-        solver: ibc_pipeline::ibc_bundle_adjust::SolverOptions {
+        solver: SolverOptions {
             log_to_stderr: std::env::var("IBC_LOG").is_ok(),
             ..RigBundleAdjustmentOptions::default().solver
         },
