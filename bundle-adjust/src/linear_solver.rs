@@ -7,10 +7,11 @@
 //! the last factor, of S' from an earlier Jacobian or damping. Near a minimum the Jacobian
 //! changes little from one step to the next and M⁻¹S is close to the identity, so a few
 //! products with S and triangular solves with the old factor replace forming S (the O(k²)
-//! block products of every point seen in k images) and factoring it: Knoll and Keyes's
-//! "lagged" preconditioner of Jacobian-free Newton-Krylov (J. Comput. Phys. 193, 2004,
-//! section 3.1). A step whose conjugate gradients do not converge within
-//! [`REUSE_MAX_ITERATIONS`] is solved again with a fresh factorization.
+//! block products of every point seen in k images) and factoring it: the "lagged"
+//! preconditioner of Newton-Krylov methods (Knoll and Keyes, "Jacobian-free Newton-Krylov
+//! methods: a survey of approaches and applications", J. Comput. Phys. 193, 2004). A step
+//! whose conjugate gradients do not converge within [`REUSE_MAX_ITERATIONS`] is solved again
+//! with a fresh factorization.
 
 use std::time::Instant;
 
