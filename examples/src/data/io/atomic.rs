@@ -28,7 +28,7 @@
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
-use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 
 use ibc_camera_models::io::IoError;
 
@@ -49,6 +49,10 @@ static STAGING: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
 /// Distinguishes the staging folders of one process.
 static NEXT_STAGING: AtomicU64 = AtomicU64::new(0);
 
+/// Set (under the registry's lock) by [`remove_staged_outputs`]: no staging folder is created
+/// after it, so none can appear between the handler's sweep and the process's exit.
+static CANCELLED: AtomicBool = AtomicBool::new(false);
+
 fn io_error(path: &Path) -> impl Fn(std::io::Error) -> DataFileError + '_ {
     move |source| IoError::os(path, source).into()
 }
@@ -63,10 +67,11 @@ fn registry() -> std::sync::MutexGuard<'static, Vec<PathBuf>> {
 
 /// Removes every staging folder of this process, for a signal handler: after it returns, no
 /// output of an unfinished [`StagedFiles`] exists and none will be written (a later
-/// [`StagedFiles::stage`] or [`StagedFiles::commit`] fails). A commit in progress finishes
-/// first, so a set is never left half renamed. Call it, then exit.
+/// [`StagedFiles::new`], [`StagedFiles::stage`] or [`StagedFiles::commit`] fails). A commit
+/// in progress finishes first, so a set is never left half renamed. Call it, then exit.
 pub fn remove_staged_outputs() {
     let mut staging = registry();
+    CANCELLED.store(true, Ordering::SeqCst);
     for dir in staging.drain(..) {
         // Best effort: the process is about to exit.
         let _ = std::fs::remove_dir_all(dir);
@@ -179,7 +184,8 @@ impl StagedFiles {
     /// folders of killed runs in `dir` are removed first.
     ///
     /// # Errors
-    /// [`DataFileError::Io`] naming the folder that cannot be created.
+    /// [`DataFileError::Io`] naming the folder that cannot be created, or the staging folder
+    /// once [`remove_staged_outputs`] has cancelled the process's outputs.
     pub fn new(dir: impl AsRef<Path>) -> Result<Self, DataFileError> {
         let dir = dir.as_ref().to_path_buf();
         let created = create_folder(&dir)?;
@@ -187,7 +193,15 @@ impl StagedFiles {
         let n = NEXT_STAGING.fetch_add(1, Ordering::Relaxed);
         let staging = dir.join(format!("{STAGING_PREFIX}{}-{n}", std::process::id()));
         let mut registry = registry();
-        if let Err(e) = std::fs::create_dir(&staging) {
+        let made = if CANCELLED.load(Ordering::SeqCst) {
+            Err(std::io::Error::new(
+                std::io::ErrorKind::Interrupted,
+                "the output was cancelled (interrupted)",
+            ))
+        } else {
+            std::fs::create_dir(&staging)
+        };
+        if let Err(e) = made {
             drop(registry);
             if let Some(top) = &created {
                 let _ = std::fs::remove_dir_all(top);
