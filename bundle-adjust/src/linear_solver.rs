@@ -21,7 +21,7 @@ use crate::options::{LinearSolverType, SolverOptions};
 use crate::parallel::Executor;
 use crate::pcg::{self, CgOptions, SchurJacobi};
 use crate::program::Program;
-use crate::reduced::{ReducedLayout, TargetKind};
+use crate::reduced::{ReducedLayout, ResidualPairs, TargetKind};
 use crate::schur::SchurComplement;
 use crate::sparse_solver::SparseSolver;
 use crate::summary::StageTimes;
@@ -75,14 +75,20 @@ impl LinearSolver {
             LinearSolverType::IterativeSchur => TargetKind::Implicit,
             _ => TargetKind::Dense,
         };
-        let layout = ReducedLayout::new(program, target);
+        let reusing = options.reuse_factorization && target == TargetKind::Blocks;
+        // The residuals' block pairs, built once for both layouts when reusing.
+        let pairs = ResidualPairs::new(program);
+        let layout = ReducedLayout::from_pairs(program, target, &pairs);
+        let reuse = reusing.then(|| {
+            ReducedLayout::from_pairs(program, TargetKind::Implicit, &pairs)
+                .without_preconditioner()
+        });
+        drop(pairs);
         let reduced = match target {
             TargetKind::Dense => Reduced::Dense(DenseSolver::new(program.n_f)),
             TargetKind::Blocks => Reduced::Sparse(Box::new(SparseSolver::new(program, &layout)?)),
             TargetKind::Implicit => Reduced::Iterative(SchurJacobi::new()),
         };
-        let reuse = (options.reuse_factorization && target == TargetKind::Blocks)
-            .then(|| ReducedLayout::new(program, TargetKind::Implicit).without_preconditioner());
         let schur = match &reuse {
             Some(implicit) => SchurComplement::with_layouts(program, &[&layout, implicit], threads),
             None => SchurComplement::new(program, &layout, threads),

@@ -61,10 +61,59 @@ pub(crate) struct ResidualBlock {
     pub cost: Box<dyn CostFunction>,
     pub loss: RobustLoss,
     /// The arguments; empty once removed.
-    pub blocks: Vec<usize>,
+    pub blocks: Arguments,
     pub rows: usize,
     /// Removed by [`Problem::remove_residual_block`]: left out of every solve.
     pub removed: bool,
+}
+
+/// A residual block's parameter blocks: up to [`Arguments::INLINE`] held in place, so that a
+/// problem of millions of residual blocks (a bundle adjustment's observations) does not
+/// allocate a list per block, and the passes over them read it next to the block.
+#[derive(Debug, Clone)]
+pub(crate) enum Arguments {
+    Inline {
+        ids: [usize; Arguments::INLINE],
+        len: u8,
+    },
+    Heap(Vec<usize>),
+}
+
+impl Arguments {
+    /// The most arguments held in place: a reprojection with free intrinsics has four.
+    const INLINE: usize = 4;
+
+    fn new(ids: &[ParameterBlockId]) -> Self {
+        match u8::try_from(ids.len()) {
+            Ok(len) if ids.len() <= Self::INLINE => {
+                let mut inline = [0; Self::INLINE];
+                for (to, id) in inline.iter_mut().zip(ids) {
+                    *to = id.0;
+                }
+                Self::Inline { ids: inline, len }
+            }
+            _ => Self::Heap(ids.iter().map(|id| id.0).collect()),
+        }
+    }
+}
+
+impl core::ops::Deref for Arguments {
+    type Target = [usize];
+    #[inline]
+    fn deref(&self) -> &[usize] {
+        match self {
+            Self::Inline { ids, len } => &ids[..usize::from(*len)],
+            Self::Heap(ids) => ids,
+        }
+    }
+}
+
+impl<'a> IntoIterator for &'a Arguments {
+    type Item = &'a usize;
+    type IntoIter = core::slice::Iter<'a, usize>;
+    fn into_iter(self) -> Self::IntoIter {
+        self.iter()
+    }
 }
 
 /// What a removed residual block holds instead of its cost function (no allocation).
@@ -269,6 +318,12 @@ impl Problem {
         self.add_boxed_residual_block(Box::new(cost), loss, blocks)
     }
 
+    /// Room for `additional` more residual blocks, allocated once (a bundle adjustment
+    /// knows its observation count).
+    pub(crate) fn reserve_residual_blocks(&mut self, additional: usize) {
+        self.residuals.reserve(additional);
+    }
+
     /// [`Problem::add_residual_block`] for an already boxed cost function.
     ///
     /// # Errors
@@ -309,7 +364,7 @@ impl Problem {
         self.residuals.push(ResidualBlock {
             cost,
             loss,
-            blocks: blocks.iter().map(|b| b.0).collect(),
+            blocks: Arguments::new(blocks),
             rows,
             removed: false,
         });
@@ -359,7 +414,7 @@ impl Problem {
         match self.residuals.get_mut(residual.0) {
             Some(r) if !r.removed => {
                 r.removed = true;
-                r.blocks = Vec::new();
+                r.blocks = Arguments::new(&[]);
                 r.cost = Box::new(RemovedCost);
                 self.live_residuals -= 1;
                 Ok(())

@@ -153,9 +153,11 @@ impl Program {
         active_blocks.extend_from_slice(&f_blocks);
 
         // Residual order: chunk residuals grouped by eliminated block, then free residuals.
+        // The chunks' members by a counting sort (stable: ascending within a chunk).
         let mut fixed_residuals = Vec::new();
-        let mut chunk_members: Vec<Vec<usize>> = vec![Vec::new(); e_list.len()];
         let mut free = Vec::new();
+        let mut chunk_of_residual = vec![NONE; problem.residuals.len()];
+        let mut member_start = vec![0usize; e_list.len() + 1];
         for (ri, r) in problem.residuals.iter().enumerate() {
             if r.removed {
                 continue;
@@ -163,16 +165,36 @@ impl Program {
             if r.blocks.iter().all(|&b| !active[b]) {
                 fixed_residuals.push(ri);
             } else if let Some(&b) = r.blocks.iter().find(|&&b| eliminate[b]) {
-                chunk_members[e_index[b] as usize].push(ri);
+                chunk_of_residual[ri] = e_index[b];
+                member_start[e_index[b] as usize + 1] += 1;
             } else {
                 free.push(ri);
             }
         }
+        for e in 0..e_list.len() {
+            member_start[e + 1] += member_start[e];
+        }
+        let mut members_sorted = vec![0usize; member_start[e_list.len()]];
+        let mut fill = member_start.clone();
+        for (ri, &e) in chunk_of_residual.iter().enumerate() {
+            if e != NONE {
+                members_sorted[fill[e as usize]] = ri;
+                fill[e as usize] += 1;
+            }
+        }
+        let chunk_members = member_start.windows(2).map(|w| &members_sorted[w[0]..w[1]]);
 
+        // Sized once: a bundle adjustment has millions of residual blocks.
+        let n_slots: usize = problem
+            .residuals
+            .iter()
+            .filter(|r| !r.removed)
+            .map(|r| r.blocks.len())
+            .sum();
         let mut program = Program {
-            res: Vec::new(),
-            slots: Vec::new(),
-            slot_info: Vec::new(),
+            res: Vec::with_capacity(problem.live_residuals),
+            slots: Vec::with_capacity(n_slots),
+            slot_info: Vec::with_capacity(n_slots),
             n_res_values: 0,
             n_jac_values: 0,
             chunks: Vec::with_capacity(e_list.len()),
@@ -206,7 +228,7 @@ impl Program {
             program.col_mask = mask;
         }
         let mut local: Vec<(u32, u32)> = Vec::new();
-        for (ei, members) in chunk_members.iter().enumerate() {
+        for (ei, members) in chunk_members.enumerate() {
             let b = e_list[ei];
             let e_size = problem.blocks[b].tangent;
             let res_start = program.res.len();

@@ -15,7 +15,7 @@
 //! the layout's size and build time follow the number of stored blocks, not the number of
 //! updates.
 
-use crate::program::{NONE, Program};
+use crate::program::{NONE, Program, ResidualLayout};
 
 /// Which target the addresses point into.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -184,32 +184,20 @@ impl ReducedLayout {
     }
 
     pub(crate) fn new(program: &Program, kind: TargetKind) -> Self {
+        Self::from_pairs(program, kind, &ResidualPairs::new(program))
+    }
+
+    /// The layout of `kind` from the residuals' block pairs (built once when two layouts of
+    /// one program are wanted).
+    pub(crate) fn from_pairs(program: &Program, kind: TargetKind, pairs: &ResidualPairs) -> Self {
         let n = program.n_f;
         let nf = program.f_blocks.len();
-        // Residual pairs (row block index >= column block index).
-        let mut c_start = Vec::with_capacity(program.res.len() + 1);
-        let mut raw_c: Vec<(u16, u16, u32, u32)> = Vec::new();
-        let mut fslots: Vec<(u32, u16)> = Vec::new();
-        for r in &program.res {
-            c_start.push(raw_c.len());
-            fslots.clear();
-            for (k, info) in program.residual_slot_info(r).iter().enumerate() {
-                if info.f_index != NONE {
-                    fslots.push((info.f_index, k as u16));
-                }
-            }
-            fslots.sort_unstable();
-            for (i, &(fa, sa)) in fslots.iter().enumerate() {
-                for &(fb, sb) in &fslots[..=i] {
-                    raw_c.push((sa, sb, fa, fb));
-                }
-            }
-        }
-        c_start.push(raw_c.len());
+        let c_start = pairs.start.clone();
+        let raw_c = &pairs.pairs;
         let (chunk_pairs, chunk_pair_start) = if kind == TargetKind::Implicit {
             (Vec::new(), Vec::new())
         } else {
-            chunk_pairs(program, &c_start, &raw_c)
+            chunk_pairs(program, &c_start, raw_c)
         };
 
         // The direct targets keep only the free residuals' pairs.
@@ -313,6 +301,46 @@ impl ReducedLayout {
             self.diag_addr.clear();
         }
         self
+    }
+}
+
+/// The pairs of reduced blocks of every residual (row block index ≥ column block index): per
+/// residual, from `start[r]`, (row slot, column slot, row block, column block).
+pub(crate) struct ResidualPairs {
+    start: Vec<usize>,
+    pairs: Vec<(u16, u16, u32, u32)>,
+}
+
+impl ResidualPairs {
+    pub(crate) fn new(program: &Program) -> Self {
+        let pairs_of = |r: &ResidualLayout| {
+            let nf = program
+                .residual_slot_info(r)
+                .iter()
+                .filter(|info| info.f_index != NONE)
+                .count();
+            nf * (nf + 1) / 2
+        };
+        let mut start = Vec::with_capacity(program.res.len() + 1);
+        let mut pairs = Vec::with_capacity(program.res.iter().map(pairs_of).sum());
+        let mut fslots: Vec<(u32, u16)> = Vec::new();
+        for r in &program.res {
+            start.push(pairs.len());
+            fslots.clear();
+            for (k, info) in program.residual_slot_info(r).iter().enumerate() {
+                if info.f_index != NONE {
+                    fslots.push((info.f_index, k as u16));
+                }
+            }
+            fslots.sort_unstable();
+            for (i, &(fa, sa)) in fslots.iter().enumerate() {
+                for &(fb, sb) in &fslots[..=i] {
+                    pairs.push((sa, sb, fa, fb));
+                }
+            }
+        }
+        start.push(pairs.len());
+        Self { start, pairs }
     }
 }
 

@@ -584,7 +584,7 @@ impl RigRefinement {
         self.validate(options)?;
         targets.validate(self.observations.len())?;
         let target_params: Vec<[f64; 7]> = targets.poses.iter().map(se3_to_params).collect();
-        let fixed: Arc<[Camera]> = self.cameras.clone().into();
+        let fixed: Vec<Arc<Camera>> = self.cameras.iter().cloned().map(Arc::new).collect();
         let frame_params: Vec<[f64; 7]> = self.world_from_rig.iter().map(se3_to_params).collect();
         let camera_params: Vec<[f64; 7]> = self.rig_from_camera.iter().map(se3_to_params).collect();
         let free = free_intrinsics(&self.cameras, |c, camera| {

@@ -258,8 +258,8 @@ pub(crate) fn full_intrinsic_covariance(
 
 /// Where a reprojection residual takes its intrinsics from.
 pub(crate) enum Intrinsics {
-    /// Held: camera `index` of the shared list.
-    Fixed(Arc<[Camera]>, usize),
+    /// Held: the camera, shared by its residuals.
+    Fixed(Arc<Camera>),
     /// Free (some of them): the last argument is the block of the free parameters.
     Free(Arc<IntrinsicsCache>),
 }
@@ -268,13 +268,13 @@ impl Intrinsics {
     /// Camera `camera`'s: free when it has free intrinsics, else held (`fixed` the shared
     /// list); with the number of free parameters.
     pub(crate) fn of(
-        fixed: &Arc<[Camera]>,
+        fixed: &[Arc<Camera>],
         camera: usize,
         free: Option<&FreeIntrinsics>,
     ) -> (Self, usize) {
         match free {
             Some(f) => (Intrinsics::Free(Arc::clone(&f.cache)), f.values.len()),
-            None => (Intrinsics::Fixed(Arc::clone(fixed), camera), 0),
+            None => (Intrinsics::Fixed(Arc::clone(&fixed[camera])), 0),
         }
     }
 }
@@ -292,7 +292,7 @@ impl Intrinsics {
         free: Option<&[f64]>,
     ) -> Option<Vector2<f64>> {
         match (self, free) {
-            (Intrinsics::Fixed(cameras, c), _) => cameras[*c].project(p_cam).ok(),
+            (Intrinsics::Fixed(camera), _) => camera.project(p_cam).ok(),
             (Intrinsics::Free(cache), Some(values)) => {
                 cache.with(values, |cam| cam.project(p_cam).ok()).flatten()
             }
@@ -309,8 +309,8 @@ impl Intrinsics {
         free: Option<&[f64]>,
     ) -> Option<Projected> {
         match (self, free) {
-            (Intrinsics::Fixed(cameras, c), _) => {
-                let (pixel, d_pixel) = cameras[*c].project_with_point_jacobian(p_cam).ok()?;
+            (Intrinsics::Fixed(camera), _) => {
+                let (pixel, d_pixel) = camera.project_with_point_jacobian(p_cam).ok()?;
                 Some((pixel, d_pixel, None))
             }
             (Intrinsics::Free(cache), Some(values)) => {
@@ -355,9 +355,9 @@ pub(crate) struct RigBaReprojection {
     pub n_args: usize,
     pub pixel: Vector2<f64>,
     /// The manifold of the rig pose's block, when it is the odometry-scale pose.
-    pub frame_sphere: Option<SpherePoseManifold>,
+    pub frame_sphere: Option<Arc<SpherePoseManifold>>,
     /// The manifold of the extrinsic's block, when it is the baseline camera.
-    pub camera_sphere: Option<SpherePoseManifold>,
+    pub camera_sphere: Option<Arc<SpherePoseManifold>>,
 }
 
 impl CostFunction for RigBaReprojection {
@@ -405,11 +405,11 @@ impl CostFunction for RigBaReprojection {
         let d_rig = d_pixel * camera_from_rig;
         if jac.wants(0) {
             let j = world_from_rig_jacobian(&d_rig, &p_rig);
-            set_pose_jacobian(jac, 0, &j, self.frame_sphere.as_ref(), &world_from_rig);
+            set_pose_jacobian(jac, 0, &j, self.frame_sphere.as_deref(), &world_from_rig);
         }
         if jac.wants(1) {
             let j = rig_from_camera_jacobian(&d_pixel, &p_cam);
-            set_pose_jacobian(jac, 1, &j, self.camera_sphere.as_ref(), &rig_from_camera);
+            set_pose_jacobian(jac, 1, &j, self.camera_sphere.as_deref(), &rig_from_camera);
         }
         if jac.wants(2) {
             let rig_from_world: Matrix3<f64> = world_from_rig

@@ -287,7 +287,8 @@ pub struct RigBundleAdjustmentResult {
     /// are still returned; [`Self::extrinsic_covariance`], [`Self::intrinsic_covariance`]
     /// and [`Self::observability`] are then empty.
     pub covariance_error: Option<BundleAdjustError>,
-    /// Root-mean-square reprojection error (pixels) at the start, over the observations used.
+    /// Root-mean-square reprojection error (pixels) at the start of the solve (the start
+    /// values, with the scale gauge's pose moved onto its sphere), over the observations used.
     pub initial_rms: f64,
     /// Root-mean-square reprojection error (pixels) at the solution.
     pub final_rms: f64,
@@ -341,6 +342,9 @@ struct Compiled {
     camera_sphere: Option<(usize, SpherePoseManifold)>,
     held_camera: Vec<bool>,
     excluded: Vec<usize>,
+    /// Root-mean-square reprojection error (pixels) at the start of the solve, over the
+    /// observations used.
+    initial_rms: f64,
 }
 
 fn invalid(name: &'static str, reason: String) -> BundleAdjustError {
@@ -591,7 +595,10 @@ impl RigBundleAdjustment {
         }
         let frame_params: Vec<[f64; 7]> = frame_poses.iter().map(se3_to_params).collect();
         let camera_params: Vec<[f64; 7]> = camera_poses.iter().map(se3_to_params).collect();
-        let fixed: Arc<[Camera]> = self.cameras.clone().into();
+        let fixed: Vec<Arc<Camera>> = self.cameras.iter().cloned().map(Arc::new).collect();
+        // The manifolds shared by the residuals on the sphere poses (a pointer each).
+        let shared_frame_sphere = frame_sphere.map(|(f, m)| (f, Arc::new(m)));
+        let shared_camera_sphere = camera_sphere.map(|(c, m)| (c, Arc::new(m)));
         let free = free_intrinsics(&self.cameras, |c, cam| {
             if !options.optimize_intrinsics {
                 return Vec::new();
@@ -600,88 +607,6 @@ impl RigBundleAdjustment {
                 .filter(|&p| !options.held_intrinsics.contains(&(c, p)))
                 .collect()
         });
-
-        let mut probe = EvaluationProbe::default();
-        let mut costs = Vec::with_capacity(self.observations.len());
-        let mut excluded = Vec::new();
-        let mut by_camera = vec![0usize; nc];
-        let mut by_frame = vec![0usize; self.world_from_rig.len()];
-        let mut by_point = vec![0usize; self.points.len()];
-        // The observations in point order (a stable counting sort of their indices), the
-        // order in which the solver visits the residual blocks: its passes then read the
-        // residual blocks and their cost functions in sequence instead of scattered over
-        // memory, and the costs are built in that order rather than permuted afterwards.
-        let mut slot = vec![0usize; self.points.len() + 1];
-        for o in &self.observations {
-            if let Some(n) = slot.get_mut(o.point + 1) {
-                *n += 1;
-            }
-        }
-        for j in 0..self.points.len() {
-            slot[j + 1] += slot[j];
-        }
-        // Scattered writes of copies, then sequential reads: cheaper than gathering.
-        let mut sorted = vec![(0usize, None::<RigBaObservation>); self.observations.len()];
-        for (i, o) in self.observations.iter().enumerate() {
-            sorted[slot[o.point]] = (i, Some(*o));
-            slot[o.point] += 1;
-        }
-        for (i, o) in sorted {
-            let Some(o) = o else { continue };
-            let fs = frame_sphere.filter(|(f, _)| *f == o.frame).map(|(_, m)| m);
-            let cs = camera_sphere
-                .filter(|(c, _)| *c == o.camera)
-                .map(|(_, m)| m);
-            let (intrinsics, n_free) = Intrinsics::of(&fixed, o.camera, free[o.camera].as_ref());
-            let n_args = if n_free > 0 { 4 } else { 3 };
-            let sizes = [7, 7, 3, n_free];
-            let cost = RigBaReprojection {
-                intrinsics,
-                sizes,
-                n_args,
-                pixel: o.pixel,
-                frame_sphere: fs,
-                camera_sphere: cs,
-            };
-            let tangents = [
-                if fs.is_some() { 5 } else { 6 },
-                if cs.is_some() { 5 } else { 6 },
-                3,
-                n_free,
-            ];
-            let params: [&[f64]; 4] = [
-                &frame_params[o.frame],
-                &camera_params[o.camera],
-                self.points[o.point].as_slice(),
-                free[o.camera].as_ref().map_or(&[][..], |f| &f.values),
-            ];
-            if probe.evaluates(&cost, &params[..n_args], &tangents[..n_args]) {
-                by_camera[o.camera] += 1;
-                by_frame[o.frame] += 1;
-                by_point[o.point] += 1;
-                costs.push((o, cost));
-            } else {
-                excluded.push(i);
-            }
-        }
-        excluded.sort_unstable();
-        let count_excluded = |pick: &dyn Fn(&RigBaObservation) -> bool| {
-            excluded
-                .iter()
-                .filter(|&&i| pick(&self.observations[i]))
-                .count()
-        };
-        check_rig_coverage(&by_camera, &by_frame, &excluded, &self.observations, |o| {
-            (o.camera, o.frame)
-        })?;
-        if let Some(point) = by_point.iter().position(|&n| n < 2) {
-            let excluded = count_excluded(&|o| o.point == point);
-            return Err(if by_point[point] == 0 {
-                BundleAdjustError::PointWithoutObservations { point, excluded }
-            } else {
-                BundleAdjustError::PointSeenOnce { point, excluded }
-            });
-        }
 
         let mut problem = Problem::new();
         let points = self
@@ -719,20 +644,98 @@ impl RigBundleAdjustment {
                 problem.set_constant(extrinsics[c], true)?;
             }
         }
-        // Residual blocks in point order (grouped by eliminated point, ascending within a
-        // point, as built above).
-        for (o, cost) in costs {
-            let blocks = [
-                frames[o.frame],
-                extrinsics[o.camera],
-                points[o.point],
-                intrinsics[o.camera]
-                    .as_ref()
-                    .map_or(points[o.point], |(k, _)| *k),
-            ];
-            let n = if intrinsics[o.camera].is_some() { 4 } else { 3 };
-            problem.add_residual_block(cost, options.loss, &blocks[..n])?;
+        let mut probe = EvaluationProbe::default();
+        problem.reserve_residual_blocks(self.observations.len() + 1);
+        let mut excluded = Vec::new();
+        let mut initial_sum_sq = 0.0;
+        let mut by_camera = vec![0usize; nc];
+        let mut by_frame = vec![0usize; self.world_from_rig.len()];
+        let mut by_point = vec![0usize; self.points.len()];
+        // Residual blocks in the observations' point order (a stable counting sort of their
+        // indices), the order in which the solver visits them (grouped by eliminated point,
+        // ascending within a point): its passes then read the residual blocks and their cost
+        // functions in sequence instead of scattered over memory. Each observation is
+        // evaluated at the start first; one that cannot be is excluded and counted.
+        let mut slot = vec![0usize; self.points.len() + 1];
+        for o in &self.observations {
+            if let Some(n) = slot.get_mut(o.point + 1) {
+                *n += 1;
+            }
         }
+        for j in 0..self.points.len() {
+            slot[j + 1] += slot[j];
+        }
+        // Scattered writes of copies, then sequential reads: cheaper than gathering.
+        let mut sorted = vec![(0usize, None::<RigBaObservation>); self.observations.len()];
+        for (i, o) in self.observations.iter().enumerate() {
+            sorted[slot[o.point]] = (i, Some(*o));
+            slot[o.point] += 1;
+        }
+        for (i, o) in sorted {
+            let Some(o) = o else { continue };
+            let fs = shared_frame_sphere
+                .as_ref()
+                .filter(|(f, _)| *f == o.frame)
+                .map(|(_, m)| Arc::clone(m));
+            let cs = shared_camera_sphere
+                .as_ref()
+                .filter(|(c, _)| *c == o.camera)
+                .map(|(_, m)| Arc::clone(m));
+            let (model, n_free) = Intrinsics::of(&fixed, o.camera, free[o.camera].as_ref());
+            let n_args = if n_free > 0 { 4 } else { 3 };
+            let sizes = [7, 7, 3, n_free];
+            let cost = RigBaReprojection {
+                intrinsics: model,
+                sizes,
+                n_args,
+                pixel: o.pixel,
+                frame_sphere: fs,
+                camera_sphere: cs,
+            };
+            let params: [&[f64]; 4] = [
+                &frame_params[o.frame],
+                &camera_params[o.camera],
+                self.points[o.point].as_slice(),
+                free[o.camera].as_ref().map_or(&[][..], |f| &f.values),
+            ];
+            // The residual alone: the models' Jacobians exist wherever their projections do.
+            if let Some(s) = probe.residual_norm2(&cost, &params[..n_args]) {
+                initial_sum_sq += s;
+                by_camera[o.camera] += 1;
+                by_frame[o.frame] += 1;
+                by_point[o.point] += 1;
+                let blocks = [
+                    frames[o.frame],
+                    extrinsics[o.camera],
+                    points[o.point],
+                    intrinsics[o.camera]
+                        .as_ref()
+                        .map_or(points[o.point], |(k, _)| *k),
+                ];
+                problem.add_residual_block(cost, options.loss, &blocks[..n_args])?;
+            } else {
+                excluded.push(i);
+            }
+        }
+        excluded.sort_unstable();
+        let count_excluded = |pick: &dyn Fn(&RigBaObservation) -> bool| {
+            excluded
+                .iter()
+                .filter(|&&i| pick(&self.observations[i]))
+                .count()
+        };
+        check_rig_coverage(&by_camera, &by_frame, &excluded, &self.observations, |o| {
+            (o.camera, o.frame)
+        })?;
+        if let Some(point) = by_point.iter().position(|&n| n < 2) {
+            let excluded = count_excluded(&|o| o.point == point);
+            return Err(if by_point[point] == 0 {
+                BundleAdjustError::PointWithoutObservations { point, excluded }
+            } else {
+                BundleAdjustError::PointSeenOnce { point, excluded }
+            });
+        }
+
         if let ScaleGauge::PointDistance {
             points: [a, b],
             distance_m,
@@ -748,6 +751,7 @@ impl RigBundleAdjustment {
                 &[points[a], points[b]],
             )?;
         }
+        let used = self.observations.len() - excluded.len();
         Ok(Compiled {
             problem,
             frames,
@@ -757,6 +761,7 @@ impl RigBundleAdjustment {
             camera_sphere,
             held_camera,
             excluded,
+            initial_rms: (initial_sum_sq / used.max(1) as f64).sqrt(),
         })
     }
 
@@ -819,6 +824,7 @@ impl RigBundleAdjustment {
             camera_sphere,
             held_camera,
             excluded,
+            initial_rms,
         } = self.compile(options)?;
         let summary = problem.solve(&options.solver)?;
         let read_poses = |ids: &[ParameterBlockId]| -> Result<Vec<Isometry3<f64>>> {
@@ -838,13 +844,7 @@ impl RigBundleAdjustment {
             .collect::<Result<Vec<_>>>()?;
         let cameras = refined_cameras(&self.cameras, &intrinsics, &problem)?;
         let mut result = RigBundleAdjustmentResult {
-            initial_rms: self.rms_error(
-                &self.cameras,
-                &self.rig_from_camera,
-                &self.world_from_rig,
-                &self.points,
-                &excluded,
-            ),
+            initial_rms,
             final_rms: self.rms_error(
                 &cameras,
                 &rig_from_camera,
