@@ -157,8 +157,8 @@ pub struct SolverOptions {
     /// With the sparse Schur solver, factor the reduced matrix only when the last factor no
     /// longer preconditions well (default false, Ceres's behaviour: a factorization per
     /// step). A later step is then solved by conjugate gradients on the exact reduced system,
-    /// preconditioned by the last factorization, to a truncated-Newton tolerance of 1e-6 (the
-    /// quadratic model within about 1e-6 of a direct solve's); if that takes more than 20
+    /// preconditioned by the last factorization, to a truncated-Newton tolerance of 1e-3 (the
+    /// quadratic model within about 1e-3 of a direct solve's); if that takes more than 20
     /// iterations the step is solved directly and the new factor kept. A step right after
     /// one that halved the cost (its Jacobian too far from the factor's) is solved directly.
     /// Where forming the reduced matrix dominates (points seen by many images, as in a rig
