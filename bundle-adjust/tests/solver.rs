@@ -472,3 +472,82 @@ fn reusing_the_factorization_reaches_the_same_minimum() {
     }
     assert_relative_eq!(results[0], results[1], max_relative = 1e-10);
 }
+
+/// Σ of every value of its arguments minus a target: `sizes` gives the arguments.
+struct Sum {
+    sizes: Vec<usize>,
+    target: f64,
+}
+
+impl CostFunction for Sum {
+    fn num_residuals(&self) -> usize {
+        1
+    }
+    fn parameter_block_sizes(&self) -> &[usize] {
+        &self.sizes
+    }
+    fn evaluate(&self, p: &[&[f64]], r: &mut [f64], j: Option<&mut Jacobians<'_>>) -> bool {
+        r[0] = p.iter().flat_map(|b| b.iter()).sum::<f64>() - self.target;
+        if let Some(j) = j {
+            for k in 0..p.len() {
+                if let Some(block) = j.row_major_mut(k) {
+                    block.fill(1.0);
+                }
+            }
+        }
+        true
+    }
+}
+
+/// A residual block of more arguments than a residual block holds in place (four): six
+/// scalar blocks, each with a prior p_i, tied by one residual Σ x_i − t over all six, reach
+/// the closed-form minimum of Σ (x_i − p_i)² + (Σ x_i − t)² (every x_i moved by
+/// (t − Σ p) / 7), and removing the tie leaves the priors' values.
+#[test]
+fn a_residual_of_six_arguments_reaches_the_closed_form_and_can_be_removed() {
+    let priors = [0.5, -1.0, 2.0, 0.25, 3.0, -0.75];
+    // A linear problem, solved past the default tolerances (the damped steps end within
+    // about 2e-9 of the minimum); a wrong argument would be off by order one.
+    let exact = SolverOptions {
+        function_tolerance: 1e-15,
+        gradient_tolerance: 1e-15,
+        parameter_tolerance: 1e-15,
+        ..options(LinearSolverType::DenseSchur)
+    };
+    let prior = |i: usize| Sum {
+        sizes: vec![1],
+        target: priors[i],
+    };
+    let mut split = Problem::new();
+    let xs: Vec<ParameterBlockId> = (0..6)
+        .map(|_| split.add_parameter_block(&[0.0]).unwrap())
+        .collect();
+    for (i, &x) in xs.iter().enumerate() {
+        split
+            .add_residual_block(prior(i), RobustLoss::Trivial, &[x])
+            .unwrap();
+    }
+    let tie = Sum {
+        sizes: vec![1; 6],
+        target: 10.0,
+    };
+    let tie_id = split
+        .add_residual_block(tie, RobustLoss::Trivial, &xs)
+        .unwrap();
+    split.solve(&exact).unwrap();
+
+    let shift = (10.0 - priors.iter().sum::<f64>()) / 7.0;
+    for (i, &x) in xs.iter().enumerate() {
+        let v = split.parameter_block(x).unwrap()[0];
+        assert_relative_eq!(v, priors[i] + shift, epsilon = 1e-7);
+    }
+    split.remove_residual_block(tie_id).unwrap();
+    split.solve(&exact).unwrap();
+    for (i, &x) in xs.iter().enumerate() {
+        assert_relative_eq!(
+            split.parameter_block(x).unwrap()[0],
+            priors[i],
+            epsilon = 1e-7
+        );
+    }
+}
