@@ -133,7 +133,7 @@ impl Problem {
                     BundleAdjustError::JacobianShapeMismatch { residual, position }
                 }
             })?;
-        let layout = ReducedLayout::new(&program, TargetKind::Dense);
+        let layout = ReducedLayout::new(&program, TargetKind::Dense)?;
         let mut schur = SchurComplement::new(&program, &layout, exec.threads());
         let zeros = vec![0.0; n];
         // A coordinate held by `set_constant_subset` has a zero Jacobian column: a unit

@@ -96,10 +96,29 @@ fn axpy_columns<M: MulAdd>(
     e: usize,
     coef: impl Fn(usize) -> f64,
 ) {
+    axpy_columns_from::<M>(col, a, m, e, coef, true);
+}
+
+/// [`axpy_columns`] from `col` when `load`, else from zero (col ← Σ_k a_k c_k, the same
+/// operations as on a zeroed `col`, without reading it).
+#[inline(always)]
+fn axpy_columns_from<M: MulAdd>(
+    col: &mut [f64],
+    a: &[f64],
+    m: usize,
+    e: usize,
+    coef: impl Fn(usize) -> f64,
+    load: bool,
+) {
     let col = &mut col[..m];
+    if !load && m > LOCAL {
+        col.fill(0.0);
+    }
     if m <= LOCAL {
         let mut acc = [0.0; LOCAL];
-        acc[..m].copy_from_slice(col);
+        if load {
+            acc[..m].copy_from_slice(col);
+        }
         for k in 0..e {
             let c = coef(k);
             let ak = &a[k * m..k * m + m];
@@ -132,11 +151,42 @@ pub(crate) fn add_at_b<M: MulAdd>(
     m: usize,
     n: usize,
 ) {
+    at_b::<M>(out, base, (ld, m, n), a, b, r, true);
+}
+
+/// out(m × n, column-major at `base`, leading dimension `ld`) = Aᵀ B: [`add_at_b`] on a zeroed
+/// `out`, operation for operation, without zeroing or reading it first.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn set_at_b<M: MulAdd>(
+    out: &mut [f64],
+    base: usize,
+    ld: usize,
+    a: &[f64],
+    b: &[f64],
+    r: usize,
+    m: usize,
+    n: usize,
+) {
+    at_b::<M>(out, base, (ld, m, n), a, b, r, false);
+}
+
+/// [`add_at_b`] (`load`) or [`set_at_b`]; `dims` = (ld, m, n).
+#[inline(always)]
+fn at_b<M: MulAdd>(
+    out: &mut [f64],
+    base: usize,
+    (ld, m, n): (usize, usize, usize),
+    a: &[f64],
+    b: &[f64],
+    r: usize,
+    load: bool,
+) {
     let a = &a[..r * m];
     let b = &b[..r * n];
     for j in 0..n {
         // Rows of A are its columns as an m × r column-major matrix.
-        axpy_columns::<M>(&mut out[base + j * ld..], a, m, r, |k| b[k * n + j]);
+        axpy_columns_from::<M>(&mut out[base + j * ld..], a, m, r, |k| b[k * n + j], load);
     }
 }
 
@@ -306,6 +356,33 @@ mod tests {
             for i in 0..9 {
                 assert_relative_eq!(big[2 + i + (3 + j) * 20], -prod[(i, j)], epsilon = 1e-14);
             }
+        }
+    }
+
+    /// `set_at_b` writes what `add_at_b` adds to a zeroed block, bit for bit, whatever the
+    /// block held (short columns in registers, long ones in place).
+    #[test]
+    fn set_at_b_is_add_at_b_on_zero() {
+        for (m, n) in [(6, 3), (9, 8), (20, 3)] {
+            let a = row_major(&sample(2, m, 0.3));
+            let b = row_major(&sample(2, n, 0.8));
+            let ld = m + 2;
+            let mut added = vec![0.0; ld * n + 1];
+            add_at_b::<Plain>(&mut added, 1, ld, &a, &b, 2, m, n);
+            let mut set = vec![f64::NAN; ld * n + 1];
+            set_at_b::<Plain>(&mut set, 1, ld, &a, &b, 2, m, n);
+            for j in 0..n {
+                for i in 0..m {
+                    let k = 1 + i + j * ld;
+                    assert_eq!(
+                        set[k].to_bits(),
+                        added[k].to_bits(),
+                        "({i}, {j}) of {m} x {n}"
+                    );
+                }
+            }
+            // Outside the block: untouched.
+            assert!(set[0].is_nan() && set[1 + m].is_nan());
         }
     }
 

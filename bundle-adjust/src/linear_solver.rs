@@ -21,7 +21,7 @@ use crate::options::{LinearSolverType, SolverOptions};
 use crate::parallel::Executor;
 use crate::pcg::{self, CgOptions, SchurJacobi};
 use crate::program::Program;
-use crate::reduced::{ReducedLayout, ResidualPairs, TargetKind};
+use crate::reduced::{ReducedLayout, TargetKind};
 use crate::schur::SchurComplement;
 use crate::sparse_solver::SparseSolver;
 use crate::summary::StageTimes;
@@ -82,14 +82,12 @@ impl LinearSolver {
             _ => TargetKind::Dense,
         };
         let reusing = options.reuse_factorization && target == TargetKind::Blocks;
-        // The residuals' block pairs, built once for both layouts when reusing.
-        let pairs = ResidualPairs::new(program);
-        let layout = ReducedLayout::from_pairs(program, target, &pairs);
-        let reuse = reusing.then(|| {
-            ReducedLayout::from_pairs(program, TargetKind::Implicit, &pairs)
-                .without_preconditioner()
-        });
-        drop(pairs);
+        let layout = ReducedLayout::new(program, target)?;
+        let reuse = if reusing {
+            Some(ReducedLayout::new(program, TargetKind::Implicit)?.without_preconditioner())
+        } else {
+            None
+        };
         let reduced = match target {
             TargetKind::Dense => Reduced::Dense(DenseSolver::new(program.n_f)),
             TargetKind::Blocks => Reduced::Sparse(Box::new(SparseSolver::new(program, &layout)?)),

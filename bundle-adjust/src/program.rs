@@ -402,7 +402,8 @@ impl Program {
     }
 }
 
-fn to_u32(v: usize) -> Result<u32> {
+/// `v` as a 32-bit index, or [`BundleAdjustError::TooLarge`].
+pub(crate) fn to_u32(v: usize) -> Result<u32> {
     u32::try_from(v).map_err(|_| BundleAdjustError::TooLarge { index: v })
 }
 

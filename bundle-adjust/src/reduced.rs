@@ -15,7 +15,8 @@
 //! the layout's size and build time follow the number of stored blocks, not the number of
 //! updates.
 
-use crate::program::{NONE, Program, ResidualLayout};
+use crate::error::Result;
+use crate::program::{NONE, Program, ResidualLayout, to_u32};
 
 /// Which target the addresses point into.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -32,8 +33,10 @@ pub(crate) struct CPair {
     pub row_slot: u16,
     /// Argument index of the column block.
     pub col_slot: u16,
-    /// Address of block (row, col) in the target.
-    pub addr: usize,
+    /// Address of block (row, col) in the target (32 bits, which halves the pair: the
+    /// implicit target lists six a residual with intrinsics free, 10.7M in the full garage of
+    /// the rig bundle adjustment).
+    pub addr: u32,
 }
 
 /// A stored block of the target (blocks and implicit targets).
@@ -45,16 +48,18 @@ pub(crate) struct BlockEntry {
 }
 
 /// A chunk residual's product Jᵀ_row J_col (direct targets), applied to S with its chunk's
-/// products V_p V_qᵀ.
+/// products V_p V_qᵀ; 20 bytes (32 with 64-bit offsets), one per pair of a chunk residual's
+/// reduced blocks.
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct ChunkPair {
     /// Reduced block of the column.
     pub col: u32,
     /// Reduced block of the row.
     pub row: u32,
-    /// Offsets of the row's and the column's Jacobian blocks in the Jacobian buffer.
-    pub a: usize,
-    pub b: usize,
+    /// Offsets of the row's and the column's Jacobian blocks in the Jacobian buffer, from
+    /// the chunk's first residual's ([`ReducedLayout::chunk_jac_base`]).
+    pub a: u32,
+    pub b: u32,
     /// Residual rows.
     pub rows: u32,
 }
@@ -67,10 +72,10 @@ pub(crate) struct ReducedLayout {
     pub n: usize,
     /// Length of the target buffer.
     pub len: usize,
-    /// Per program residual, the start of its pairs (length residuals + 1), in a list of
-    /// which `c_pairs` holds the part from `c_start[c_first]` on: every residual's for the
-    /// implicit target, the free residuals' for the direct ones (a chunk residual's products
-    /// are applied with its chunk's, from `chunk_pairs`).
+    /// Per program residual from `c_first` on, the start of its pairs in `c_pairs` (length
+    /// residuals − `c_first` + 1): every residual's for the implicit target, the free
+    /// residuals' for the direct ones (a chunk residual's products are applied with its
+    /// chunk's, from `chunk_pairs`).
     c_start: Vec<usize>,
     c_first: usize,
     c_pairs: Vec<CPair>,
@@ -148,8 +153,8 @@ impl ReducedLayout {
             ri >= self.c_first,
             "the pairs of a chunk residual were not kept"
         );
-        let base = self.c_start[self.c_first];
-        &self.c_pairs[self.c_start[ri] - base..self.c_start[ri + 1] - base]
+        let k = ri - self.c_first;
+        &self.c_pairs[self.c_start[k]..self.c_start[k + 1]]
     }
 
     /// Whether every chunk pair is updated (direct solvers) or only the diagonal.
@@ -183,47 +188,57 @@ impl ReducedLayout {
         column[k].addr
     }
 
-    pub(crate) fn new(program: &Program, kind: TargetKind) -> Self {
-        Self::from_pairs(program, kind, &ResidualPairs::new(program))
-    }
-
-    /// The layout of `kind` from the residuals' block pairs (built once when two layouts of
-    /// one program are wanted).
-    pub(crate) fn from_pairs(program: &Program, kind: TargetKind, pairs: &ResidualPairs) -> Self {
+    /// The layout of `kind`.
+    ///
+    /// # Errors
+    /// [`BundleAdjustError::TooLarge`] when an address of the target or an offset in a
+    /// chunk's Jacobian does not fit 32 bits.
+    pub(crate) fn new(program: &Program, kind: TargetKind) -> Result<Self> {
         let n = program.n_f;
         let nf = program.f_blocks.len();
-        let c_start = pairs.start.clone();
-        let raw_c = &pairs.pairs;
         let (chunk_pairs, chunk_pair_start) = if kind == TargetKind::Implicit {
             (Vec::new(), Vec::new())
         } else {
-            chunk_pairs(program, &c_start, raw_c)
+            chunk_pairs(program)?
         };
-
         // The direct targets keep only the free residuals' pairs.
         let c_first = if kind == TargetKind::Implicit {
             0
         } else {
             program.n_chunk_residuals
         };
-        let kept = &raw_c[c_start[c_first]..];
+        let kept = &program.res[c_first..];
+        let mut c_start = Vec::with_capacity(kept.len() + 1);
+        c_start.push(0);
+        for r in kept {
+            c_start.push(c_start[c_start.len() - 1] + pair_count(program, r));
+        }
+        // The kept residuals' pairs with their addresses.
+        let c_pairs = |addr: &dyn Fn(u32, u32) -> usize| {
+            let mut pairs = ResidualPairs::default();
+            let mut out = Vec::with_capacity(c_start[kept.len()]);
+            for r in kept {
+                out.extend(pairs.of(program, r).iter().map(|&(sa, sb, fa, fb)| CPair {
+                    row_slot: sa,
+                    col_slot: sb,
+                    addr: addr(fa, fb) as u32,
+                }));
+            }
+            out
+        };
         let off = &program.f_offset;
         if kind == TargetKind::Dense {
             let addr = |a: u32, b: u32| off[a as usize] + off[b as usize] * n;
-            return Self {
+            // Every address is below n².
+            to_u32(n * n)?;
+            let c_pairs = c_pairs(&addr);
+            return Ok(Self {
                 kind,
                 n,
                 len: n * n,
                 c_start,
                 c_first,
-                c_pairs: kept
-                    .iter()
-                    .map(|&(sa, sb, fa, fb)| CPair {
-                        row_slot: sa,
-                        col_slot: sb,
-                        addr: addr(fa, fb),
-                    })
-                    .collect(),
+                c_pairs,
                 diag_addr: (0..nf as u32).map(|a| addr(a, a)).collect(),
                 c_diag_addr: Vec::new(),
                 blocks: Vec::new(),
@@ -231,7 +246,7 @@ impl ReducedLayout {
                 offsets: off.clone(),
                 chunk_pairs,
                 chunk_pair_start,
-            };
+            });
         }
         // Stored blocks: S's (residual and chunk pairs) or C's (residual pairs), column by
         // column, rows ascending.
@@ -255,7 +270,7 @@ impl ReducedLayout {
             kind,
             n,
             len,
-            c_start,
+            c_start: Vec::new(),
             c_first,
             c_pairs: Vec::new(),
             diag_addr: Vec::new(),
@@ -266,14 +281,10 @@ impl ReducedLayout {
             chunk_pairs,
             chunk_pair_start,
         };
-        layout.c_pairs = kept
-            .iter()
-            .map(|&(sa, sb, fa, fb)| CPair {
-                row_slot: sa,
-                col_slot: sb,
-                addr: layout.find(fa, fb),
-            })
-            .collect();
+        // Every address of C's blocks is below the target's length.
+        to_u32(layout.len)?;
+        layout.c_pairs = c_pairs(&|a, b| layout.find(a, b));
+        layout.c_start = c_start;
         let c_diag: Vec<usize> = (0..nf as u32).map(|a| layout.find(a, a)).collect();
         if kind == TargetKind::Blocks {
             layout.diag_addr = c_diag;
@@ -287,7 +298,13 @@ impl ReducedLayout {
             layout.diag_addr = diag_addr;
             layout.c_diag_addr = c_diag;
         }
-        layout
+        Ok(layout)
+    }
+
+    /// The offset in the Jacobian buffer from which chunk `ci`'s [`ChunkPair`] offsets count.
+    #[inline(always)]
+    pub(crate) fn chunk_jac_base(program: &Program, ci: usize) -> usize {
+        program.res[program.chunks[ci].res.start].jac_off
     }
 
     /// The implicit target without the preconditioner's blocks (C's only), for conjugate
@@ -304,76 +321,117 @@ impl ReducedLayout {
     }
 }
 
-/// The pairs of reduced blocks of every residual (row block index ≥ column block index): per
-/// residual, from `start[r]`, (row slot, column slot, row block, column block).
-pub(crate) struct ResidualPairs {
-    start: Vec<usize>,
+/// The pairs of reduced blocks of a residual (row block index ≥ column block index), as
+/// (row slot, column slot, row block, column block), ordered by row block then column block;
+/// the buffers are reused from residual to residual.
+#[derive(Default)]
+struct ResidualPairs {
+    fslots: Vec<(u32, u16)>,
     pairs: Vec<(u16, u16, u32, u32)>,
 }
 
 impl ResidualPairs {
-    pub(crate) fn new(program: &Program) -> Self {
-        let pairs_of = |r: &ResidualLayout| {
-            let nf = program
-                .residual_slot_info(r)
-                .iter()
-                .filter(|info| info.f_index != NONE)
-                .count();
-            nf * (nf + 1) / 2
-        };
-        let mut start = Vec::with_capacity(program.res.len() + 1);
-        let mut pairs = Vec::with_capacity(program.res.iter().map(pairs_of).sum());
-        let mut fslots: Vec<(u32, u16)> = Vec::new();
-        for r in &program.res {
-            start.push(pairs.len());
-            fslots.clear();
-            for (k, info) in program.residual_slot_info(r).iter().enumerate() {
-                if info.f_index != NONE {
-                    fslots.push((info.f_index, k as u16));
-                }
-            }
-            fslots.sort_unstable();
-            for (i, &(fa, sa)) in fslots.iter().enumerate() {
-                for &(fb, sb) in &fslots[..=i] {
-                    pairs.push((sa, sb, fa, fb));
-                }
+    fn of(&mut self, program: &Program, r: &ResidualLayout) -> &[(u16, u16, u32, u32)] {
+        self.fslots.clear();
+        for (k, info) in program.residual_slot_info(r).iter().enumerate() {
+            if info.f_index != NONE {
+                self.fslots.push((info.f_index, k as u16));
             }
         }
-        start.push(pairs.len());
-        Self { start, pairs }
+        self.fslots.sort_unstable();
+        self.pairs.clear();
+        for (i, &(fa, sa)) in self.fslots.iter().enumerate() {
+            for &(fb, sb) in &self.fslots[..=i] {
+                self.pairs.push((sa, sb, fa, fb));
+            }
+        }
+        &self.pairs
     }
 }
 
-/// The residual pairs `raw_c` (slots and reduced blocks, from `c_start` per residual) of
-/// every chunk, as [`ChunkPair`]s sorted by (column, row) within a chunk (stable, so in
-/// residual order within a block), with the start of each chunk's.
-fn chunk_pairs(
-    program: &Program,
-    c_start: &[usize],
-    raw_c: &[(u16, u16, u32, u32)],
-) -> (Vec<ChunkPair>, Vec<usize>) {
-    let mut pairs = Vec::with_capacity(c_start[program.n_chunk_residuals]);
+/// The number of pairs of residual `r`'s reduced blocks.
+fn pair_count(program: &Program, r: &ResidualLayout) -> usize {
+    let nf = program
+        .residual_slot_info(r)
+        .iter()
+        .filter(|info| info.f_index != NONE)
+        .count();
+    nf * (nf + 1) / 2
+}
+
+/// The residual pairs of every chunk, as [`ChunkPair`]s sorted by (column, row) within a
+/// chunk (stable, so in residual order within a block), with the start of each chunk's. The
+/// sort is a two-pass counting sort on the blocks' indices among the chunk's own (ascending
+/// like the blocks).
+fn chunk_pairs(program: &Program) -> Result<(Vec<ChunkPair>, Vec<usize>)> {
+    let chunk_residuals = &program.res[..program.n_chunk_residuals];
+    let total = chunk_residuals.iter().map(|r| pair_count(program, r)).sum();
+    let mut pairs = Vec::with_capacity(total);
+    let mut residual_pairs = ResidualPairs::default();
     let mut start = Vec::with_capacity(program.chunks.len() + 1);
-    for c in &program.chunks {
+    // The chunk's pairs in residual order, their (column, row) local indices, and the
+    // orders of the two passes.
+    let mut unsorted: Vec<ChunkPair> = Vec::new();
+    let mut keys: Vec<(u32, u32)> = Vec::new();
+    let (mut identity, mut by_row, mut by_col) = (Vec::new(), Vec::new(), Vec::new());
+    let mut count: Vec<usize> = Vec::new();
+    for (ci, c) in program.chunks.iter().enumerate() {
         start.push(pairs.len());
+        let base = ReducedLayout::chunk_jac_base(program, ci);
+        unsorted.clear();
+        keys.clear();
         for ri in c.res.clone() {
             let r = &program.res[ri];
             let slots = program.residual_slots(r);
-            for &(sa, sb, fa, fb) in &raw_c[c_start[ri]..c_start[ri + 1]] {
-                pairs.push(ChunkPair {
+            let infos = program.residual_slot_info(r);
+            let jac = r.jac_off - base;
+            for &(sa, sb, fa, fb) in residual_pairs.of(program, r) {
+                let (sa, sb) = (sa as usize, sb as usize);
+                unsorted.push(ChunkPair {
                     col: fb,
                     row: fa,
-                    a: r.jac_off + slots[sa as usize].offset as usize,
-                    b: r.jac_off + slots[sb as usize].offset as usize,
+                    a: to_u32(jac + slots[sa].offset as usize)?,
+                    b: to_u32(jac + slots[sb].offset as usize)?,
                     rows: r.rows,
                 });
+                keys.push((infos[sb].f_local, infos[sa].f_local));
             }
         }
-        let last = start.len() - 1;
-        pairs[start[last]..].sort_by_key(|p| (p.col, p.row));
+        // Pass 1: by row, from residual order; pass 2: by column, stable.
+        let locals = c.f.len();
+        identity.clear();
+        identity.extend(0..to_u32(keys.len())?);
+        counting_sort(&identity, |k| keys[k].1, locals, &mut count, &mut by_row);
+        counting_sort(&by_row, |k| keys[k].0, locals, &mut count, &mut by_col);
+        pairs.extend(by_col.iter().map(|&k| unsorted[k as usize]));
     }
     start.push(pairs.len());
-    (pairs, start)
+    Ok((pairs, start))
+}
+
+/// `order` (indices into a list) stably sorted by `key` (below `buckets`) into `out`.
+fn counting_sort(
+    order: &[u32],
+    key: impl Fn(usize) -> u32,
+    buckets: usize,
+    count: &mut Vec<usize>,
+    out: &mut Vec<u32>,
+) {
+    count.clear();
+    count.resize(buckets + 1, 0);
+    for &k in order {
+        count[key(k as usize) as usize + 1] += 1;
+    }
+    for b in 0..buckets {
+        count[b + 1] += count[b];
+    }
+    out.clear();
+    out.resize(order.len(), 0);
+    for &k in order {
+        let next = &mut count[key(k as usize) as usize];
+        out[*next] = k;
+        *next += 1;
+    }
 }
 
 /// Calls `f(col, rows)` for every column of the stored blocks in ascending order, with the

@@ -407,45 +407,44 @@ impl CostFunction for RigReprojection {
             residuals[1] = pixel.y - self.pixel.y;
             return true;
         };
-        let Some((pixel, d_pixel, d_params)) = self.intrinsics.project_with_jacobians(&p_cam, free)
-        else {
-            return false;
-        };
-        residuals[0] = pixel.x - self.pixel.x;
-        residuals[1] = pixel.y - self.pixel.y;
-        // Right perturbations: ∂(T Exp(δ))⁻¹p/∂δ = [−I, [T⁻¹p]×] for δ = [ρ, φ].
-        let camera_from_rig: Matrix3<f64> = rig_from_camera
-            .rotation
-            .to_rotation_matrix()
-            .into_inner()
-            .transpose();
-        let d_pixel_d_rig = d_pixel * camera_from_rig;
-        if jac.wants(0) {
-            jac.set(0, &world_from_rig_jacobian(&d_pixel_d_rig, &p_rig));
-        }
-        if jac.wants(1) {
-            jac.set(1, &rig_from_camera_jacobian(&d_pixel, &p_cam));
-        }
-        if has_free {
-            self.intrinsics.set_jacobian(jac, 2, d_params.as_ref());
-        }
-        if let Some(t) = world_from_target
-            && jac.wants(target_arg)
-        {
-            // ∂(T Exp(δ) X)/∂δ = R [I, −[X]×], then into the rig and camera frames.
-            let rig_from_world: Matrix3<f64> = world_from_rig
-                .rotation
-                .to_rotation_matrix()
-                .into_inner()
-                .transpose();
-            let a = d_pixel_d_rig * rig_from_world * t.rotation.to_rotation_matrix().into_inner();
-            let mut j = SMatrix::<f64, 2, 6>::zeros();
-            j.fixed_view_mut::<2, 3>(0, 0).copy_from(&a);
-            j.fixed_view_mut::<2, 3>(0, 3)
-                .copy_from(&(-a * skew(&self.world_point)));
-            jac.set(target_arg, &j);
-        }
-        true
+        self.intrinsics
+            .with_jacobians(&p_cam, free, |pixel, d_pixel, d_params| {
+                // Right perturbations: ∂(T Exp(δ))⁻¹p/∂δ = [−I, [T⁻¹p]×] for δ = [ρ, φ].
+                let d_pixel_d_rig = residual_and_rig_jacobian(
+                    residuals,
+                    pixel,
+                    &self.pixel,
+                    d_pixel,
+                    &rig_from_camera,
+                );
+                if jac.wants(0) {
+                    jac.set(0, &world_from_rig_jacobian(&d_pixel_d_rig, &p_rig));
+                }
+                if jac.wants(1) {
+                    jac.set(1, &rig_from_camera_jacobian(d_pixel, &p_cam));
+                }
+                if has_free {
+                    self.intrinsics.set_jacobian(jac, 2, d_params);
+                }
+                if let Some(t) = world_from_target
+                    && jac.wants(target_arg)
+                {
+                    // ∂(T Exp(δ) X)/∂δ = R [I, −[X]×], then into the rig and camera frames.
+                    let rig_from_world: Matrix3<f64> = world_from_rig
+                        .rotation
+                        .to_rotation_matrix()
+                        .into_inner()
+                        .transpose();
+                    let a = d_pixel_d_rig
+                        * rig_from_world
+                        * t.rotation.to_rotation_matrix().into_inner();
+                    let mut j = SMatrix::<f64, 2, 6>::zeros();
+                    j.fixed_view_mut::<2, 3>(0, 0).copy_from(&a);
+                    j.fixed_view_mut::<2, 3>(0, 3)
+                        .copy_from(&(-a * skew(&self.world_point)));
+                    jac.set(target_arg, &j);
+                }
+            })
     }
 }
 
@@ -463,6 +462,26 @@ pub(crate) fn world_from_rig_jacobian(
     j.fixed_view_mut::<2, 3>(0, 3)
         .copy_from(&(d_pixel_d_rig * skew(p_rig)));
     j
+}
+
+/// Writes the reprojection residual `pixel − observed` and returns ∂pixel/∂p_rig =
+/// `d_pixel` (∂pixel/∂p_cam) · R_camera_from_rig (shared with the rig bundle adjustment).
+#[inline]
+pub(crate) fn residual_and_rig_jacobian(
+    residuals: &mut [f64],
+    pixel: &Vector2<f64>,
+    observed: &Vector2<f64>,
+    d_pixel: &Matrix2x3<f64>,
+    rig_from_camera: &Isometry3<f64>,
+) -> Matrix2x3<f64> {
+    residuals[0] = pixel.x - observed.x;
+    residuals[1] = pixel.y - observed.y;
+    let camera_from_rig: Matrix3<f64> = rig_from_camera
+        .rotation
+        .to_rotation_matrix()
+        .into_inner()
+        .transpose();
+    d_pixel * camera_from_rig
 }
 
 /// ∂pixel/∂δ of a right perturbation δ = `[ρ, φ]` of `rig_from_camera`, with `d_pixel` =

@@ -12,6 +12,8 @@
 //! - [`PointDistancePrior`]: (|X_a − X_b| − d) / σ, the soft scale gauge of a known distance
 //!   between two points.
 
+use std::cell::RefCell;
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, RwLock};
 
 use ibc_camera_models::{Camera, CameraModel, ParamJacobian};
@@ -23,7 +25,7 @@ use crate::manifold::{
     Manifold, se3_from_params, se3_from_unit_params, se3_to_params, so3_exp, sphere_tangent_basis,
 };
 use crate::problem::{ParameterBlockId, Problem};
-use crate::rig::{rig_from_camera_jacobian, world_from_rig_jacobian};
+use crate::rig::{residual_and_rig_jacobian, rig_from_camera_jacobian, world_from_rig_jacobian};
 
 /// A pose `[qw, qx, qy, qz, tx, ty, tz]` whose translation stays on the sphere of radius
 /// `radius` about `centre`: x ⊞ δ with δ = `[a, b, φ]` rotates as T · Exp(φ) and moves the
@@ -100,16 +102,39 @@ fn set_pose_jacobian(
 
 /// A camera whose free intrinsics follow their parameter block (the held ones stay at the
 /// camera's values): rebuilt and validated by its model only when the values change.
+///
+/// Two levels: the shared camera (behind a lock, rebuilt when the values change) and a
+/// per-thread copy in a small memo keyed by the cache's unique id, which answers the
+/// evaluations of one linearization point without touching the lock (whose atomic operations
+/// and checks were about 2 % of an intrinsics-free rig bundle adjustment's profile). A rig's
+/// caches get consecutive ids, so up to
+/// [`MEMO_SLOTS`] cameras never evict each other; beyond, an evicted camera is copied back
+/// from the shared one.
 #[derive(Debug)]
 pub(crate) struct IntrinsicsCache {
+    id: u64,
     camera: RwLock<Camera>,
     /// Indices (CamOdoCal order) of the free parameters, the order of the block.
     pub free: Vec<usize>,
 }
 
+/// Slots of the per-thread memo of [`IntrinsicsCache`] cameras.
+const MEMO_SLOTS: usize = 16;
+
+/// The next [`IntrinsicsCache`] id (ids are never reused, so a memo entry of a dropped cache
+/// never answers for another).
+static NEXT_CACHE_ID: AtomicU64 = AtomicU64::new(0);
+
+thread_local! {
+    /// Per thread: the camera last used by the cache of each id modulo [`MEMO_SLOTS`].
+    static MEMO: RefCell<[Option<(u64, Camera)>; MEMO_SLOTS]> =
+        const { RefCell::new([const { None }; MEMO_SLOTS]) };
+}
+
 impl IntrinsicsCache {
     pub(crate) fn new(camera: Camera, free: Vec<usize>) -> Self {
         Self {
+            id: NEXT_CACHE_ID.fetch_add(1, Ordering::Relaxed),
             camera: RwLock::new(camera),
             free,
         }
@@ -125,7 +150,44 @@ impl IntrinsicsCache {
 
     /// Calls `f` with the camera at the free values `values`, or `None` when the model
     /// refuses them.
-    pub(crate) fn with<R>(&self, values: &[f64], f: impl Fn(&Camera) -> R) -> Option<R> {
+    #[inline]
+    pub(crate) fn with<R>(&self, values: &[f64], f: impl FnOnce(&Camera) -> R) -> Option<R> {
+        let slot = (self.id % MEMO_SLOTS as u64) as usize;
+        // `f` is called in place, its result written once: results are large (a projection's
+        // Jacobians), and moving them through nested options showed as memory copies.
+        let mut f = Some(f);
+        let mut out = None;
+        // The memo is unavailable while a thread is torn down or from a call inside `f`:
+        // then the shared camera answers alone.
+        let _ = MEMO.try_with(|memo| {
+            let Ok(mut memo) = memo.try_borrow_mut() else {
+                return;
+            };
+            let hit = matches!(&memo[slot], Some((id, camera))
+                if *id == self.id && self.matches(camera, values));
+            if !hit {
+                match self.shared(values, Clone::clone) {
+                    Some(camera) => memo[slot] = Some((self.id, camera)),
+                    // Refused: `out` stays `None`.
+                    None => {
+                        f = None;
+                        return;
+                    }
+                }
+            }
+            if let (Some((_, camera)), Some(f)) = (&memo[slot], f.take()) {
+                out = Some(f(camera));
+            }
+        });
+        match f {
+            Some(f) => self.shared(values, f),
+            None => out,
+        }
+    }
+
+    /// `f` of the shared camera, first set to `values` if it holds others; `None` when the
+    /// model refuses them.
+    fn shared<R>(&self, values: &[f64], f: impl FnOnce(&Camera) -> R) -> Option<R> {
         if let Ok(camera) = self.camera.read()
             && self.matches(&camera, values)
         {
@@ -279,9 +341,6 @@ impl Intrinsics {
     }
 }
 
-/// A projection with d pixel / d point and, for free intrinsics, d pixel / d params.
-pub(crate) type Projected = (Vector2<f64>, Matrix2x3<f64>, Option<ParamJacobian<2>>);
-
 impl Intrinsics {
     /// The pixel of `p_cam`, `None` outside the model's domain; `free` is the block of the
     /// free parameters (ignored when held).
@@ -300,26 +359,35 @@ impl Intrinsics {
         }
     }
 
-    /// The pixel of `p_cam` with its Jacobians, the parameter Jacobian only when the
-    /// intrinsics are free.
+    /// Calls `f` with the pixel of `p_cam`, d pixel / d point and, when the intrinsics are
+    /// free, d pixel / d params; false (and `f` not called) outside the model's domain or for
+    /// intrinsics the model refuses. The Jacobians are lent, not returned: moving them out
+    /// through the camera cache cost the evaluation memory copies.
     #[inline]
-    pub(crate) fn project_with_jacobians(
+    pub(crate) fn with_jacobians(
         &self,
         p_cam: &Vector3<f64>,
         free: Option<&[f64]>,
-    ) -> Option<Projected> {
+        f: impl FnOnce(&Vector2<f64>, &Matrix2x3<f64>, Option<&ParamJacobian<2>>),
+    ) -> bool {
         match (self, free) {
-            (Intrinsics::Fixed(camera), _) => {
-                let (pixel, d_pixel) = camera.project_with_point_jacobian(p_cam).ok()?;
-                Some((pixel, d_pixel, None))
-            }
-            (Intrinsics::Free(cache), Some(values)) => {
-                let pj = cache
-                    .with(values, |cam| cam.project_with_jacobians(p_cam))?
-                    .ok()?;
-                Some((pj.pixel, pj.d_pixel_d_point, Some(pj.d_pixel_d_params)))
-            }
-            (Intrinsics::Free(_), None) => None,
+            (Intrinsics::Fixed(camera), _) => match camera.project_with_point_jacobian(p_cam) {
+                Ok((pixel, d_pixel)) => {
+                    f(&pixel, &d_pixel, None);
+                    true
+                }
+                Err(_) => false,
+            },
+            (Intrinsics::Free(cache), Some(values)) => cache
+                .with(values, |cam| match cam.project_with_jacobians(p_cam) {
+                    Ok(pj) => {
+                        f(&pj.pixel, &pj.d_pixel_d_point, Some(&pj.d_pixel_d_params));
+                        true
+                    }
+                    Err(_) => false,
+                })
+                .unwrap_or(false),
+            (Intrinsics::Free(_), None) => false,
         }
     }
 
@@ -391,36 +459,33 @@ impl CostFunction for RigBaReprojection {
             residuals[1] = pixel.y - self.pixel.y;
             return true;
         };
-        let Some((pixel, d_pixel, d_params)) = self.intrinsics.project_with_jacobians(&p_cam, free)
-        else {
-            return false;
-        };
-        residuals[0] = pixel.x - self.pixel.x;
-        residuals[1] = pixel.y - self.pixel.y;
-        let camera_from_rig: Matrix3<f64> = rig_from_camera
-            .rotation
-            .to_rotation_matrix()
-            .into_inner()
-            .transpose();
-        let d_rig = d_pixel * camera_from_rig;
-        if jac.wants(0) {
-            let j = world_from_rig_jacobian(&d_rig, &p_rig);
-            set_pose_jacobian(jac, 0, &j, self.frame_sphere.as_deref(), &world_from_rig);
-        }
-        if jac.wants(1) {
-            let j = rig_from_camera_jacobian(&d_pixel, &p_cam);
-            set_pose_jacobian(jac, 1, &j, self.camera_sphere.as_deref(), &rig_from_camera);
-        }
-        if jac.wants(2) {
-            let rig_from_world: Matrix3<f64> = world_from_rig
-                .rotation
-                .to_rotation_matrix()
-                .into_inner()
-                .transpose();
-            jac.set(2, &(d_rig * rig_from_world));
-        }
-        self.intrinsics.set_jacobian(jac, 3, d_params.as_ref());
-        true
+        self.intrinsics
+            .with_jacobians(&p_cam, free, |pixel, d_pixel, d_params| {
+                let d_rig = residual_and_rig_jacobian(
+                    residuals,
+                    pixel,
+                    &self.pixel,
+                    d_pixel,
+                    &rig_from_camera,
+                );
+                if jac.wants(0) {
+                    let j = world_from_rig_jacobian(&d_rig, &p_rig);
+                    set_pose_jacobian(jac, 0, &j, self.frame_sphere.as_deref(), &world_from_rig);
+                }
+                if jac.wants(1) {
+                    let j = rig_from_camera_jacobian(d_pixel, &p_cam);
+                    set_pose_jacobian(jac, 1, &j, self.camera_sphere.as_deref(), &rig_from_camera);
+                }
+                if jac.wants(2) {
+                    let rig_from_world: Matrix3<f64> = world_from_rig
+                        .rotation
+                        .to_rotation_matrix()
+                        .into_inner()
+                        .transpose();
+                    jac.set(2, &(d_rig * rig_from_world));
+                }
+                self.intrinsics.set_jacobian(jac, 3, d_params);
+            })
     }
 }
 
@@ -466,6 +531,51 @@ impl CostFunction for PointDistancePrior {
 mod tests {
     use super::*;
     use approx::assert_relative_eq;
+
+    /// The per-thread memo answers for its own cache only: caches sharing a memo slot, values
+    /// that change, values the model refuses and a call from inside `f` all see the camera
+    /// at their own values.
+    #[test]
+    fn intrinsics_caches_answer_with_their_own_values() {
+        use ibc_camera_models::KannalaBrandt;
+        let params = [0.01, -0.002, 0.0005, -0.0001, 400.0, 401.0, 640.0, 480.0];
+        let camera = Camera::from(KannalaBrandt::new(1280, 960, params).unwrap());
+        // Focal lengths free; of MEMO_SLOTS + 1 caches, two share a slot (whatever other
+        // tests create meanwhile).
+        let caches: Vec<IntrinsicsCache> = (0..=MEMO_SLOTS)
+            .map(|_| IntrinsicsCache::new(camera.clone(), vec![4, 5]))
+            .collect();
+        let slot = |c: &IntrinsicsCache| c.id % MEMO_SLOTS as u64;
+        let (i, j) = (0..caches.len())
+            .flat_map(|i| (i + 1..caches.len()).map(move |j| (i, j)))
+            .find(|&(i, j)| slot(&caches[i]) == slot(&caches[j]))
+            .unwrap();
+        let (a, b) = (&caches[i], &caches[j]);
+        let p = Vector3::new(0.3, -0.2, 1.0);
+        let u = |cache: &IntrinsicsCache, f: [f64; 2]| {
+            cache.with(&f, |c| c.project(&p).unwrap().x).unwrap()
+        };
+        let expected = |f: f64| {
+            let mut q = params;
+            q[4] = f;
+            KannalaBrandt::new(1280, 960, q)
+                .unwrap()
+                .project(&p)
+                .unwrap()
+                .x
+        };
+        for _ in 0..2 {
+            assert_eq!(u(a, [410.0, 401.0]), expected(410.0));
+            assert_eq!(u(b, [390.0, 401.0]), expected(390.0));
+        }
+        assert_eq!(u(a, [420.0, 401.0]), expected(420.0));
+        // A negative focal length is refused, and the next valid values answer again.
+        assert!(a.with(&[-1.0, 401.0], |c| c.params()[4]).is_none());
+        assert_eq!(u(a, [410.0, 401.0]), expected(410.0));
+        // Re-entrant: the inner call answers from the shared camera.
+        let nested = a.with(&[430.0, 401.0], |_| u(b, [380.0, 401.0])).unwrap();
+        assert_eq!(nested, expected(380.0));
+    }
 
     #[test]
     fn sphere_manifold_stays_on_the_sphere_and_matches_its_basis() {

@@ -1126,7 +1126,7 @@ fn marginal_information(
                 BundleAdjustError::JacobianShapeMismatch { residual, position }
             }
         })?;
-    let layout = ReducedLayout::new(&program, TargetKind::Dense);
+    let layout = ReducedLayout::new(&program, TargetKind::Dense)?;
     let mut schur = SchurComplement::new(&program, &layout, exec.threads());
     let zeros = vec![0.0; n];
     if !schur.eliminate(&program, &layout, &jac, &zeros, &zeros, &exec) {

@@ -19,8 +19,8 @@
 //! operations in the same order as chunk by chunk.
 
 use crate::kernels::{
-    Shape, add_a_x, add_at_b, add_at_x, cholesky, right_solve_lower_transpose, solve_lower,
-    solve_lower_transpose, sub_a_bt, sub_a_x, with_shape,
+    Shape, add_a_x, add_at_b, add_at_x, cholesky, right_solve_lower_transpose, set_at_b,
+    solve_lower, solve_lower_transpose, sub_a_bt, sub_a_x, with_shape,
 };
 use crate::parallel::{Executor, balanced_ranges, split_at_offsets};
 use crate::program::{NONE, Program};
@@ -514,6 +514,7 @@ fn eliminate_range<S: Shape, M: MulAdd>(
     let (v_base, l_base, y_base) = (first.v_off, first.l_off, first.e_col);
     let full = layout.full_pairs();
     let mut group = Group::default();
+    let mut written: Vec<bool> = Vec::new();
     let mut start = range.start;
     while start < range.end {
         let end = (start + GROUP).min(range.end);
@@ -531,8 +532,10 @@ fn eliminate_range<S: Shape, M: MulAdd>(
             let l = &mut bufs.l[c.l_off - l_base..c.l_off - l_base + e * e];
             let y = &mut bufs.y[c.e_col - y_base..c.e_col - y_base + e];
             l.fill(0.0);
-            v.fill(0.0);
             let voffs = &program.chunk_f_voff[c.f.clone()];
+            // Which of the chunk's W blocks a residual has written (each is, by one at least).
+            written.clear();
+            written.resize(voffs.len(), false);
             for ri in c.res.clone() {
                 let r = &program.res[ri];
                 let rows = shape.rows(r.rows as usize);
@@ -552,7 +555,10 @@ fn eliminate_range<S: Shape, M: MulAdd>(
                     }
                     let f = shape.f(s.cols as usize);
                     let jf = &jr[s.offset as usize..s.offset as usize + rows * f];
-                    add_pair::<M>(v, voffs[info.f_local as usize], f, jf, je, rows, f, e);
+                    let local = info.f_local as usize;
+                    let first = !written[local];
+                    written[local] = true;
+                    add_w::<M>(v, voffs[local], jf, je, rows, f, e, first);
                 }
                 // With all pairs, a residual's own products are applied with the group's
                 // (`update_group`).
@@ -566,9 +572,14 @@ fn eliminate_range<S: Shape, M: MulAdd>(
                     let fb = shape.f(sb.cols as usize);
                     let ja = &jr[sa.offset as usize..sa.offset as usize + rows * fa];
                     let jb = &jr[sb.offset as usize..sb.offset as usize + rows * fb];
-                    add_pair::<M>(target, cp.addr, layout.ld(fa), ja, jb, rows, fa, fb);
+                    let (addr, ld) = (cp.addr as usize, layout.ld(fa));
+                    add_pair::<M>(target, addr, ld, ja, jb, rows, fa, fb);
                 }
             }
+            debug_assert!(
+                written.iter().all(|&w| w),
+                "a W block no residual of its chunk has"
+            );
             for k in 0..e {
                 l[k + k * e] += diag[c.e_col + k];
             }
@@ -664,8 +675,11 @@ fn update_group<S: Shape, M: MulAdd>(
     let mut pairs_end: [usize; GROUP] = [0; GROUP];
     // Eliminated size of each chunk; all points (e = 3) in the common case.
     let mut e_size: [u32; GROUP] = [0; GROUP];
+    // Where each chunk's pair offsets count from.
+    let mut jac_base: [usize; GROUP] = [0; GROUP];
     let mut points = true;
     for (g, ci) in chunks.enumerate() {
+        jac_base[g] = ReducedLayout::chunk_jac_base(program, ci);
         next[g] = pair_start[ci];
         pairs_end[g] = pair_start[ci + 1];
         let e = shape.e(program.chunks[ci].e_size);
@@ -692,8 +706,8 @@ fn update_group<S: Shape, M: MulAdd>(
                         break;
                     }
                     ops.push(BlockOp {
-                        a: d.a,
-                        b: d.b,
+                        a: jac_base[g] + d.a as usize,
+                        b: jac_base[g] + d.b as usize,
                         k: d.rows,
                         v: false,
                     });
@@ -915,6 +929,32 @@ fn add_pair<M: MulAdd>(
     }
 }
 
+/// A chunk's W block (`m × e`, packed) += Jᵀ_f J_e of one residual, or = on the block's first
+/// residual (`first`): the same operations as on a zeroed block, without zeroing the chunk's V
+/// buffer first (a quarter of a gigabyte in the full garage with intrinsics free, written
+/// once more per elimination).
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn add_w<M: MulAdd>(
+    out: &mut [f64],
+    base: usize,
+    a: &[f64],
+    b: &[f64],
+    r: usize,
+    m: usize,
+    e: usize,
+    first: bool,
+) {
+    if !first {
+        add_pair::<M>(out, base, m, a, b, r, m, e);
+        return;
+    }
+    match (r, e) {
+        (2, 3) => with_fixed_size!(m, |fm| set_at_b::<M>(out, base, fm, a, b, 2, fm, 3)),
+        _ => set_at_b::<M>(out, base, m, a, b, r, m, e),
+    }
+}
+
 /// JᵀJ blocks of the residuals that have no eliminated argument.
 #[inline(always)]
 fn free_residuals<M: MulAdd>(
@@ -934,7 +974,8 @@ fn free_residuals<M: MulAdd>(
             let (fa, fb) = (sa.cols as usize, sb.cols as usize);
             let ja = &jr[sa.offset as usize..sa.offset as usize + rows * fa];
             let jb = &jr[sb.offset as usize..sb.offset as usize + rows * fb];
-            add_at_b::<M>(target, cp.addr, layout.ld(fa), ja, jb, rows, fa, fb);
+            let (addr, ld) = (cp.addr as usize, layout.ld(fa));
+            add_at_b::<M>(target, addr, ld, ja, jb, rows, fa, fb);
         }
     }
 }
