@@ -72,8 +72,9 @@ impl Corrector {
     }
 
     /// Corrects one row-major Jacobian block (`rows` × `cols`) in place, using the
-    /// uncorrected residual.
-    #[inline]
+    /// uncorrected residual. Inlined so that the loops of a block whose sizes are constants
+    /// at the call are unrolled.
+    #[inline(always)]
     pub(crate) fn correct_jacobian(&self, residual: &[f64], jacobian: &mut [f64], cols: usize) {
         if self.alpha_sq_norm == 0.0 {
             for v in jacobian.iter_mut() {
@@ -86,11 +87,19 @@ impl Corrector {
             for (k, r) in residual.iter().enumerate() {
                 r_dot_j += jacobian[k * cols + c] * r;
             }
-            for (k, r) in residual.iter().enumerate() {
+            for (k, &r) in residual.iter().enumerate() {
                 let v = &mut jacobian[k * cols + c];
-                *v = self.sqrt_rho1 * (*v - self.alpha_sq_norm * r * r_dot_j);
+                *v = self.corrected_entry(*v, r, r_dot_j);
             }
         }
+    }
+
+    /// One corrected Jacobian entry √ρ′ (J_kc − α r_k (rᵀJ)_c / s), from the entry J_kc, the
+    /// uncorrected residual's r_k and the column's rᵀJ, for a corrector that is not a plain
+    /// reweighting.
+    #[inline(always)]
+    pub(crate) fn corrected_entry(&self, entry: f64, r_k: f64, r_dot_j: f64) -> f64 {
+        self.sqrt_rho1 * (entry - self.alpha_sq_norm * r_k * r_dot_j)
     }
 
     /// Corrects the residual in place (call after [`Self::correct_jacobian`]).

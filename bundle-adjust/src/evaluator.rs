@@ -327,11 +327,19 @@ impl JacobianTask<'_, '_> {
                 cost += 0.5 * rho[0];
                 Some(Corrector::with_curvature(s, rho, self.evaluator.curvature))
             };
-            // A plain √ρ′ reweighting of the Jacobian is folded into the column scaling.
+            // A plain √ρ′ reweighting of the Jacobian is folded into the column scaling; a
+            // Triggs correction of a residual of up to `TRIGGS_ROWS` rows is applied block by
+            // block with the scaling below (from the uncorrected residual kept here), that of
+            // a longer residual in a separate pass first.
             let mut factor = 1.0;
+            let mut uncorrected = [0.0; TRIGGS_ROWS];
+            let mut triggs = None;
             if let Some(c) = &corrector {
                 if let Some(f) = c.jacobian_factor() {
                     factor = f;
+                } else if rows <= TRIGGS_ROWS {
+                    uncorrected[..rows].copy_from_slice(r);
+                    triggs = Some(c);
                 } else {
                     for slot in slots.iter().filter(|s| s.wanted) {
                         let cols = slot.cols as usize;
@@ -341,6 +349,7 @@ impl JacobianTask<'_, '_> {
                 }
                 c.correct_residual(r);
             }
+            let triggs = triggs.map(|c| (c, &uncorrected[..rows]));
             let mut finite = 0.0;
             for (slot, info) in slots.iter().zip(prog.residual_slot_info(layout)) {
                 if !slot.wanted {
@@ -367,13 +376,14 @@ impl JacobianTask<'_, '_> {
                 let scale = self.scale.map(|s| &s[col..col + cols]);
                 // Two rows (a reprojection) and the block sizes of a rig bundle adjustment
                 // at compile time on the dynamic shape; the same operations either way.
+                let (t, f) = (triggs, factor);
                 finite += match (rows, cols) {
-                    (2, 3) => finish_block::<M>(block, r, 2, 3, factor, scale, g, c),
-                    (2, 5) => finish_block::<M>(block, r, 2, 5, factor, scale, g, c),
-                    (2, 6) => finish_block::<M>(block, r, 2, 6, factor, scale, g, c),
-                    (2, 8) => finish_block::<M>(block, r, 2, 8, factor, scale, g, c),
-                    (2, 9) => finish_block::<M>(block, r, 2, 9, factor, scale, g, c),
-                    _ => finish_block::<M>(block, r, rows, cols, factor, scale, g, c),
+                    (2, 3) => finish_block::<M>(block, r, 2, 3, t, f, scale, g, c),
+                    (2, 5) => finish_block::<M>(block, r, 2, 5, t, f, scale, g, c),
+                    (2, 6) => finish_block::<M>(block, r, 2, 6, t, f, scale, g, c),
+                    (2, 8) => finish_block::<M>(block, r, 2, 8, t, f, scale, g, c),
+                    (2, 9) => finish_block::<M>(block, r, 2, 9, t, f, scale, g, c),
+                    _ => finish_block::<M>(block, r, rows, cols, t, f, scale, g, c),
                 };
             }
             // Any non-finite entry makes the sum of entry × 0 a NaN.
@@ -388,7 +398,12 @@ impl JacobianTask<'_, '_> {
 /// Columns up to this count are accumulated in local arrays that LLVM keeps in registers.
 const LOCAL: usize = 16;
 
-/// Multiplies a row-major Jacobian block's columns by `factor` times their scale,
+/// Residual rows up to this count have their Triggs correction applied block by block, in
+/// [`finish_block`], with the block's sizes known at compile time in the common cases.
+const TRIGGS_ROWS: usize = 4;
+
+/// Applies a Triggs correction (the corrector and the uncorrected residual) if there is one,
+/// then multiplies a row-major Jacobian block's columns by `factor` times their scale,
 /// accumulates its gradient Jᵀr and squared column norms, and returns Σ entry × 0 (NaN if an
 /// entry is not finite).
 #[inline(always)]
@@ -398,6 +413,7 @@ fn finish_block<M: MulAdd>(
     r: &[f64],
     rows: usize,
     cols: usize,
+    triggs: Option<(&Corrector, &[f64])>,
     factor: f64,
     scale: Option<&[f64]>,
     g: &mut [f64],
@@ -415,12 +431,30 @@ fn finish_block<M: MulAdd>(
                 *s = factor * v;
             }
         }
+        // The correction's rᵀJ per column, then each entry corrected in registers as it is
+        // scaled (the operations of `Corrector::correct_jacobian`, without storing the
+        // corrected block and loading it again).
+        let mut r_dot_j = [0.0; LOCAL];
+        if let Some((_, uncorrected)) = triggs {
+            for (k, &u) in uncorrected[..rows].iter().enumerate() {
+                let row = &block[k * cols..k * cols + cols];
+                for j in 0..cols {
+                    r_dot_j[j] += row[j] * u;
+                }
+            }
+        }
         let (mut gl, mut cl, mut pl) = ([0.0; LOCAL], [0.0; LOCAL], [0.0; LOCAL]);
         for k in 0..rows {
             let row = &mut block[k * cols..k * cols + cols];
             let rk = r[k];
             for j in 0..cols {
-                let v = row[j] * sc[j];
+                let x = match triggs {
+                    Some((corrector, uncorrected)) => {
+                        corrector.corrected_entry(row[j], uncorrected[k], r_dot_j[j])
+                    }
+                    None => row[j],
+                };
+                let v = x * sc[j];
                 row[j] = v;
                 pl[j] = M::madd(v, 0.0, pl[j]);
                 gl[j] = M::madd(v, rk, gl[j]);
@@ -432,6 +466,9 @@ fn finish_block<M: MulAdd>(
             c[j] += cl[j];
         }
         return pl[..cols].iter().sum();
+    }
+    if let Some((corrector, uncorrected)) = triggs {
+        corrector.correct_jacobian(&uncorrected[..rows], block, cols);
     }
     let mut probe = 0.0;
     for k in 0..rows {
@@ -445,4 +482,67 @@ fn finish_block<M: MulAdd>(
         }
     }
     probe
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::RobustLoss;
+    use crate::simd::{Fused, Plain};
+
+    /// A Triggs correction applied inside [`finish_block`] (in registers for a block of up
+    /// to `LOCAL` columns) gives the block, gradient and column norms of the separate pass
+    /// (`Corrector::correct_jacobian`, then the scaling) bit for bit, with and without column
+    /// scales, for a reprojection's blocks and a wider one, with either multiply-add.
+    #[test]
+    fn triggs_correction_in_finish_block_is_the_separate_pass() {
+        check_triggs::<Plain>();
+        check_triggs::<Fused>();
+    }
+
+    fn check_triggs<M: MulAdd>() {
+        for (rows, cols) in [(2, 3), (2, 6), (2, 8), (3, 5), (2, LOCAL + 4)] {
+            let uncorrected: Vec<f64> = (0..rows).map(|k| 0.7 - 0.45 * k as f64).collect();
+            let s: f64 = uncorrected.iter().map(|v| v * v).sum();
+            let rho = RobustLoss::Cauchy { scale: 1.0 }.evaluate(s);
+            let corrector = Corrector::with_curvature(s, rho, LossCurvature::InlierCurvature);
+            assert!(
+                corrector.jacobian_factor().is_none(),
+                "an inlier is corrected"
+            );
+            let mut r = uncorrected.clone();
+            corrector.correct_residual(&mut r);
+            let jac: Vec<f64> = (0..rows * cols)
+                .map(|i| ((i * 37 % 11) as f64 - 5.0) * 0.173)
+                .collect();
+            let scales: Vec<f64> = (0..cols).map(|j| 1.0 / (1.0 + j as f64)).collect();
+            for scale in [None, Some(scales.as_slice())] {
+                let (mut fused, mut separate) = (jac.clone(), jac.clone());
+                let (mut g1, mut c1) = (vec![0.25; cols], vec![0.5; cols]);
+                let (mut g2, mut c2) = (g1.clone(), c1.clone());
+                let triggs = Some((&corrector, uncorrected.as_slice()));
+                let p1 = finish_block::<M>(
+                    &mut fused, &r, rows, cols, triggs, 1.0, scale, &mut g1, &mut c1,
+                );
+                corrector.correct_jacobian(&uncorrected, &mut separate, cols);
+                let p2 = finish_block::<M>(
+                    &mut separate,
+                    &r,
+                    rows,
+                    cols,
+                    None,
+                    1.0,
+                    scale,
+                    &mut g2,
+                    &mut c2,
+                );
+                let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+                assert_eq!(bits(&fused), bits(&separate), "{rows} x {cols}");
+                assert_eq!(bits(&g1), bits(&g2), "{rows} x {cols}");
+                assert_eq!(bits(&c1), bits(&c2), "{rows} x {cols}");
+                assert_eq!(p1.to_bits(), p2.to_bits());
+                assert_ne!(fused, jac, "the block was corrected");
+            }
+        }
+    }
 }
