@@ -400,12 +400,9 @@ impl CostFunction for RigReprojection {
             .coords;
         let free = if has_free { Some(parameters[2]) } else { None };
         let Some(jac) = jacobians else {
-            let Some(pixel) = self.intrinsics.project(&p_cam, free) else {
-                return false;
-            };
-            residuals[0] = pixel.x - self.pixel.x;
-            residuals[1] = pixel.y - self.pixel.y;
-            return true;
+            return self
+                .intrinsics
+                .reprojection_residual(&p_cam, free, &self.pixel, residuals);
         };
         self.intrinsics
             .with_jacobians(&p_cam, free, |pixel, d_pixel, d_params| {

@@ -359,6 +359,24 @@ impl Intrinsics {
         }
     }
 
+    /// Writes the reprojection residual `pixel − observed` of `p_cam` into `residuals`;
+    /// false (nothing written) outside the model's domain, as [`Self::project`].
+    #[inline]
+    pub(crate) fn reprojection_residual(
+        &self,
+        p_cam: &Vector3<f64>,
+        free: Option<&[f64]>,
+        observed: &Vector2<f64>,
+        residuals: &mut [f64],
+    ) -> bool {
+        let Some(pixel) = self.project(p_cam, free) else {
+            return false;
+        };
+        residuals[0] = pixel.x - observed.x;
+        residuals[1] = pixel.y - observed.y;
+        true
+    }
+
     /// Calls `f` with the pixel of `p_cam`, d pixel / d point and, when the intrinsics are
     /// free, d pixel / d params; false (and `f` not called) outside the model's domain or for
     /// intrinsics the model refuses. The Jacobians are lent, not returned: moving them out
@@ -452,12 +470,9 @@ impl CostFunction for RigBaReprojection {
             rig_from_camera.inverse_transform_vector(&(p_rig - rig_from_camera.translation.vector));
         let free = parameters.get(3).copied();
         let Some(jac) = jacobians else {
-            let Some(pixel) = self.intrinsics.project(&p_cam, free) else {
-                return false;
-            };
-            residuals[0] = pixel.x - self.pixel.x;
-            residuals[1] = pixel.y - self.pixel.y;
-            return true;
+            return self
+                .intrinsics
+                .reprojection_residual(&p_cam, free, &self.pixel, residuals);
         };
         self.intrinsics
             .with_jacobians(&p_cam, free, |pixel, d_pixel, d_params| {
