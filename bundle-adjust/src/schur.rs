@@ -464,7 +464,8 @@ struct ChunkBuffers<'a> {
 /// garage of the rig bundle adjustment, with groups of 16, 9.3M block visits instead of 43M
 /// block updates per elimination, consecutive points being seen by nearly the same frames),
 /// and the operations of a visit run with the block in registers. At most 32 (a chunk mask
-/// is a `u32`); 32 measured a few per cent faster than 16.
+/// is a `u32`); 32 measured a few per cent faster than 16, 64 (with `u64` masks) no faster
+/// than 32.
 const GROUP: usize = 32;
 
 /// One update of a block of S inside a group: out(m × n) ± Σ_k a_k b_kᵀ over k < `k`, a
@@ -492,6 +493,33 @@ struct Group {
     /// V offset of (distinct block u, chunk g) at `u * GROUP + g`.
     v_off: Vec<usize>,
     ops: Vec<BlockOp>,
+}
+
+/// The chunk products V_p V_qᵀ of a block with no residual product, as operations: the
+/// chunks of `common` in ascending order, their V blocks at `a[g]` and `b[g]` (points: e = 3).
+#[derive(Clone, Copy)]
+struct ChunkProducts<'a> {
+    common: u32,
+    a: &'a [usize],
+    b: &'a [usize],
+}
+
+impl Iterator for ChunkProducts<'_> {
+    type Item = BlockOp;
+    #[inline(always)]
+    fn next(&mut self) -> Option<BlockOp> {
+        if self.common == 0 {
+            return None;
+        }
+        let g = self.common.trailing_zeros() as usize;
+        self.common &= self.common - 1;
+        Some(BlockOp {
+            a: self.a[g],
+            b: self.b[g],
+            k: 3,
+            v: true,
+        })
+    }
 }
 
 #[allow(clippy::too_many_arguments)]
@@ -635,7 +663,9 @@ fn eliminate_range<S: Shape, M: MulAdd>(
 /// Applies a group's products to S: for every block (p, q), p ≥ q, that a chunk of the
 /// group has, in chunk order, the chunk's deferred residual products Jᵀ_p J_q then its
 /// −V_p V_qᵀ. Each block's operations are those of the chunk-by-chunk elimination in the
-/// same order, so the result is the same to the bit.
+/// same order, so the result is the same to the bit. A block with chunk products only (most
+/// of them: two poses of different frames) is updated straight from the chunk mask and the
+/// V offsets, without listing its operations.
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
 fn update_group<S: Shape, M: MulAdd>(
@@ -678,7 +708,7 @@ fn update_group<S: Shape, M: MulAdd>(
     // Where each chunk's pair offsets count from.
     let mut jac_base: [usize; GROUP] = [0; GROUP];
     let mut points = true;
-    for (g, ci) in chunks.enumerate() {
+    for (g, ci) in chunks.clone().enumerate() {
         jac_base[g] = ReducedLayout::chunk_jac_base(program, ci);
         next[g] = pair_start[ci];
         pairs_end[g] = pair_start[ci + 1];
@@ -687,6 +717,23 @@ fn update_group<S: Shape, M: MulAdd>(
         points &= e == 3;
     }
     let pairs = &layout.chunk_pairs;
+    // Each chunk's next residual pair, by its block (column, row) packed as a key, `u64::MAX`
+    // past its last; the blocks are visited in ascending key order and every pair is consumed
+    // at its block's visit, so no next key is below the visited block's and a block has
+    // residual products only when its key is the least next key.
+    let key = |col: u32, row: u32| (u64::from(col) << 32) | u64::from(row);
+    let next_key = |g: usize, next: &[usize; GROUP]| {
+        pairs[next[g]..pairs_end[g]]
+            .first()
+            .map_or(u64::MAX, |d| key(d.col, d.row))
+    };
+    let n_chunks = chunks.len();
+    let least_key = |next: &[usize; GROUP]| {
+        (0..n_chunks)
+            .map(|g| next_key(g, next))
+            .fold(u64::MAX, u64::min)
+    };
+    let mut least = least_key(&next);
     for (qu, &fq) in f.iter().enumerate() {
         let mq = shape.f(program.f_size(fq as usize));
         let mut column = layout.column(fq);
@@ -696,6 +743,21 @@ fn update_group<S: Shape, M: MulAdd>(
                 continue;
             }
             let mp = shape.f(program.f_size(fp as usize));
+            let addr = column.addr(fp);
+            let ld = layout.ld(mp);
+            let block = key(fq, fp);
+            debug_assert!(block <= least, "a residual product's block passed over");
+            if points && block != least {
+                // Chunk products only (two poses of different frames, in a rig bundle
+                // adjustment): read from the group's V offsets, no operation list.
+                let products = ChunkProducts {
+                    common,
+                    a: &v_off[pu * GROUP..(pu + 1) * GROUP],
+                    b: &v_off[qu * GROUP..(qu + 1) * GROUP],
+                };
+                update_block_e3::<M, _>(target, addr, ld, products, jac, v, mp, mq);
+                continue;
+            }
             ops.clear();
             while common != 0 {
                 let g = common.trailing_zeros() as usize;
@@ -720,12 +782,14 @@ fn update_group<S: Shape, M: MulAdd>(
                     v: true,
                 });
             }
-            let addr = column.addr(fp);
-            let ld = layout.ld(mp);
+            if block == least {
+                least = least_key(&next);
+            }
+            let ops = ops.iter().copied();
             if points {
-                update_block_e3::<M>(target, addr, ld, ops, jac, v, mp, mq);
+                update_block_e3::<M, _>(target, addr, ld, ops, jac, v, mp, mq);
             } else {
-                update_block::<M>(target, addr, ld, ops, jac, v, mp, mq);
+                update_block::<M, _>(target, addr, ld, ops, jac, v, mp, mq);
             }
         }
     }
@@ -740,11 +804,11 @@ fn update_group<S: Shape, M: MulAdd>(
 /// residual product) and [`sub_a_bt`] (for a chunk product), in the same order.
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
-fn update_block<M: MulAdd>(
+fn update_block<M: MulAdd, I: Iterator<Item = BlockOp> + Clone>(
     out: &mut [f64],
     base: usize,
     ld: usize,
-    ops: &[BlockOp],
+    ops: I,
     jac: &[f64],
     v: &[f64],
     m: usize,
@@ -766,7 +830,7 @@ fn update_block<M: MulAdd>(
         let col = &mut out[base + j * ld..base + j * ld + m];
         let mut acc = [0.0; LOCAL];
         acc[..m].copy_from_slice(col);
-        for op in ops {
+        for op in ops.clone() {
             if op.v {
                 let e = op.k as usize;
                 let a = &v[op.a..op.a + m * e];
@@ -799,11 +863,11 @@ fn update_block<M: MulAdd>(
 /// blocks of a rig bundle adjustment (5: a pose on a sphere, 6: a pose, 8 and 9: intrinsics).
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
-fn update_block_e3<M: MulAdd>(
+fn update_block_e3<M: MulAdd, I: Iterator<Item = BlockOp> + Clone>(
     out: &mut [f64],
     base: usize,
     ld: usize,
-    ops: &[BlockOp],
+    ops: I,
     jac: &[f64],
     v: &[f64],
     m: usize,
@@ -813,7 +877,7 @@ fn update_block_e3<M: MulAdd>(
     // registers, so the accumulators are never spilled and their chains run side by side.
     macro_rules! columns {
         ($p:literal, $q:literal, [$(($j0:literal, $w:literal)),*]) => {{
-            $(update_columns::<M, $p, $q, $j0, $w>(out, base, ld, ops, jac, v);)*
+            $(update_columns::<M, _, $p, $q, $j0, $w>(out, base, ld, ops.clone(), jac, v);)*
         }};
     }
     match (m, n) {
@@ -833,7 +897,7 @@ fn update_block_e3<M: MulAdd>(
         (5, 9) => columns!(5, 9, [(0, 3), (3, 3), (6, 3)]),
         (8, 9) => columns!(8, 9, [(0, 3), (3, 3), (6, 3)]),
         (9, 9) => columns!(9, 9, [(0, 3), (3, 3), (6, 3)]),
-        _ => update_block::<M>(out, base, ld, ops, jac, v, m, n),
+        _ => update_block::<M, _>(out, base, ld, ops, jac, v, m, n),
     }
 }
 
@@ -841,11 +905,18 @@ fn update_block_e3<M: MulAdd>(
 /// (block `MP × MQ`): the columns are held in local accumulators across the operations, each
 /// entry updated by the same operations in the same order.
 #[inline(always)]
-fn update_columns<M: MulAdd, const MP: usize, const MQ: usize, const J0: usize, const W: usize>(
+fn update_columns<
+    M: MulAdd,
+    I: Iterator<Item = BlockOp>,
+    const MP: usize,
+    const MQ: usize,
+    const J0: usize,
+    const W: usize,
+>(
     out: &mut [f64],
     base: usize,
     ld: usize,
-    ops: &[BlockOp],
+    ops: I,
     jac: &[f64],
     v: &[f64],
 ) {

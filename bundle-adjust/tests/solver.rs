@@ -213,6 +213,81 @@ fn covariance_matches_the_inverse_normal_matrix() {
     }
 }
 
+/// r = A [x; y] − b for a point-sized block x (3) and a pose-sized block y (6).
+struct LinearPointPose {
+    a: SMatrix<f64, 2, 9>,
+}
+
+impl CostFunction for LinearPointPose {
+    fn num_residuals(&self) -> usize {
+        2
+    }
+    fn parameter_block_sizes(&self) -> &[usize] {
+        &[3, 6]
+    }
+    fn evaluate(&self, p: &[&[f64]], r: &mut [f64], j: Option<&mut Jacobians<'_>>) -> bool {
+        let x = SMatrix::<f64, 9, 1>::from_iterator(p[0].iter().chain(p[1]).copied());
+        let y = self.a * x;
+        r[0] = y[0] - 0.4;
+        r[1] = y[1] + 0.2;
+        if let Some(j) = j {
+            j.set(0, &self.a.fixed_columns::<3>(0).into_owned());
+            j.set(1, &self.a.fixed_columns::<6>(3).into_owned());
+        }
+        true
+    }
+}
+
+/// Points (3) each seen by every pose (6): the blocks of two poses receive chunk products
+/// only, the diagonal blocks residual products too (the two paths of the grouped
+/// elimination); the poses' covariance from the eliminated system is the pose block of the
+/// full (JᵀJ)⁻¹.
+#[test]
+fn covariance_of_poses_seen_by_points_matches_the_inverse_normal_matrix() {
+    let (points, poses) = (7, 4);
+    let mut problem = Problem::new();
+    let x: Vec<_> = (0..points)
+        .map(|i| {
+            let v = [0.1 * i as f64, -0.2, 0.3];
+            let id = problem.add_parameter_block(&v).unwrap();
+            problem.set_eliminated(id, true).unwrap();
+            id
+        })
+        .collect();
+    let y: Vec<_> = (0..poses)
+        .map(|k| problem.add_parameter_block(&[0.05 * k as f64; 6]).unwrap())
+        .collect();
+    let n = 3 * points + 6 * poses;
+    let mut stacked = DMatrix::zeros(0, n);
+    for (i, &xi) in x.iter().enumerate() {
+        for (k, &yk) in y.iter().enumerate() {
+            let a = SMatrix::<f64, 2, 9>::from_fn(|r, c| {
+                (((r * 7 + c * 3 + i * 11 + k * 5).pow(2)) as f64 * 0.31).sin()
+            });
+            problem
+                .add_residual_block(LinearPointPose { a }, RobustLoss::Trivial, &[xi, yk])
+                .unwrap();
+            let rows = stacked.nrows();
+            stacked = stacked.insert_rows(rows, 2, 0.0);
+            let mut row = stacked.view_mut((rows, 0), (2, n));
+            row.view_mut((0, 3 * i), (2, 3))
+                .copy_from(&a.fixed_columns::<3>(0));
+            row.view_mut((0, 3 * points + 6 * k), (2, 6))
+                .copy_from(&a.fixed_columns::<6>(3));
+        }
+    }
+    let full = (stacked.transpose() * &stacked).try_inverse().unwrap();
+    let want = full.view((3 * points, 3 * points), (6 * poses, 6 * poses));
+    let cov = problem.covariance(&y, &SolverOptions::default()).unwrap();
+    assert_relative_eq!(cov.matrix().clone(), want.into_owned(), max_relative = 1e-9);
+    for (k, &yk) in y.iter().enumerate() {
+        for (l, &yl) in y.iter().enumerate() {
+            let block = want.view((6 * k, 6 * l), (6, 6)).into_owned();
+            assert_relative_eq!(cov.block(yk, yl).unwrap(), block, max_relative = 1e-9);
+        }
+    }
+}
+
 /// r = [x − 1, x − 1] for a block [x, y]: y does not enter, so JᵀJ is singular.
 struct IgnoresY;
 
