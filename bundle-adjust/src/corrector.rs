@@ -72,9 +72,8 @@ impl Corrector {
     }
 
     /// Corrects one row-major Jacobian block (`rows` × `cols`) in place, using the
-    /// uncorrected residual. Inlined so that the loops of a block whose sizes are constants
-    /// at the call are unrolled.
-    #[inline(always)]
+    /// uncorrected residual.
+    #[inline]
     pub(crate) fn correct_jacobian(&self, residual: &[f64], jacobian: &mut [f64], cols: usize) {
         if self.alpha_sq_norm == 0.0 {
             for v in jacobian.iter_mut() {
