@@ -40,7 +40,8 @@ const REUSE_MAX_ITERATIONS: usize = 20;
 /// quadratic model's last relative decrease, times the iteration count, below 1e-3, so that
 /// the step's model value is within about 1e-3 of the exact one (a direct solve's), its
 /// energy-norm error about 3%. Measured on the full garage (4 x 500 frames, intrinsics
-/// free): final costs 1.5e-5, 1.9e-4 and 4.3e-3 above the solve at 1e-6 for η = 1e-4, 1e-3
+/// free, from the initial trust-region radius 1e4 the rig bundle adjustment then used):
+/// final costs 1.5e-5, 1.9e-4 and 4.3e-3 above the solve at 1e-6 for η = 1e-4, 1e-3
 /// and 1e-2 (of 3.2e5; the function tolerance stops within 0.32), with 4-7 iterations a step
 /// at 1e-3 against 7-13 at 1e-6. The parameters along weakly determined directions follow
 /// the exact steps' at 1e-3 (worst extrinsic error 0.00491 against 0.00490 deg); at 1e-2
