@@ -7,8 +7,8 @@
 //!
 //! `IBC_RBA_SCALE` (default 0.2: a fifth of the garage, 275k observations) sets the world's
 //! size (the pipeline's scenario scale); `IBC_RBA_SCALE=1` is the full garage, where one solve
-//! takes minutes and ten samples most of an hour. `cargo bench -p ibc-benches --bench rig_bundle_adjust -- --warm-up-time 1
-//! --measurement-time 3`.
+//! takes 7-11 s and ten samples of each bench about two minutes. `cargo bench -p ibc-benches
+//! --bench rig_bundle_adjust -- --warm-up-time 1 --measurement-time 3`.
 #![allow(missing_docs, clippy::unwrap_used, clippy::expect_used)]
 
 use std::time::Duration;
@@ -152,6 +152,23 @@ fn rig_bundle_adjust(c: &mut Criterion) {
             });
         }
     }
+    // The defaults but for Ceres's start radius (1e4, the default until 2026-12-04): on the
+    // full garage with intrinsics free, damping-limited steps take one more iteration.
+    let options = RigBundleAdjustmentOptions {
+        scale: ScaleGauge::Baseline {
+            camera: 2,
+            distance_m: baseline,
+        },
+        optimize_intrinsics: true,
+        solver: SolverOptions {
+            initial_trust_region_radius: SolverOptions::default().initial_trust_region_radius,
+            ..RigBundleAdjustmentOptions::default().solver
+        },
+        ..Default::default()
+    };
+    group.bench_function("intrinsics free, sparse, Ceres's start radius", |b| {
+        b.iter(|| ba.solve(&options).unwrap())
+    });
     group.finish();
 }
 
